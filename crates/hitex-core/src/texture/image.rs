@@ -1,0 +1,185 @@
+//! RGBA8 images and the sRGB transfer function.
+
+use crate::CoreError;
+use std::sync::LazyLock;
+
+/// How the 8-bit channels of an [`Image`] are encoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ColorSpace {
+    /// Colour channels are sRGB-encoded (alpha is linear); filtering happens
+    /// after decoding to linear light. The usual case for photographs.
+    #[default]
+    Srgb,
+    /// Channels are linear data (masks, normal maps, index maps).
+    Linear,
+}
+
+/// An RGBA image with 8 bits per channel, rows top to bottom.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Image {
+    width: u32,
+    height: u32,
+    color_space: ColorSpace,
+    data: Vec<[u8; 4]>,
+}
+
+/// Largest accepted side of an image, in texels (the limit of common GPUs).
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+
+impl Image {
+    /// Wraps texel data; fails if the sizes are zero, too large, or do not
+    /// match the data length.
+    pub fn new(width: u32, height: u32, color_space: ColorSpace, data: Vec<[u8; 4]>) -> Result<Self, CoreError> {
+        check_size(width, height)?;
+        let expected = width as usize * height as usize;
+        if data.len() != expected {
+            return Err(CoreError::InvalidImage(format!(
+                "{width}x{height} image needs {expected} texels, got {}",
+                data.len()
+            )));
+        }
+        Ok(Self { width, height, color_space, data })
+    }
+
+    /// An image filled with one texel value.
+    pub fn filled(width: u32, height: u32, color_space: ColorSpace, texel: [u8; 4]) -> Result<Self, CoreError> {
+        check_size(width, height)?;
+        Ok(Self { width, height, color_space, data: vec![texel; width as usize * height as usize] })
+    }
+
+    /// Builds an image by evaluating `f(x, y)` for every texel.
+    pub fn from_fn(
+        width: u32,
+        height: u32,
+        color_space: ColorSpace,
+        mut f: impl FnMut(u32, u32) -> [u8; 4],
+    ) -> Result<Self, CoreError> {
+        check_size(width, height)?;
+        let mut data = Vec::with_capacity(width as usize * height as usize);
+        for y in 0..height {
+            for x in 0..width {
+                data.push(f(x, y));
+            }
+        }
+        Ok(Self { width, height, color_space, data })
+    }
+
+    /// Width in texels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+    /// Height in texels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+    /// Encoding of the colour channels.
+    pub fn color_space(&self) -> ColorSpace {
+        self.color_space
+    }
+    /// Texels, row-major, top row first.
+    pub fn texels(&self) -> &[[u8; 4]] {
+        &self.data
+    }
+    /// Texels as bytes (RGBA RGBA ...).
+    pub fn bytes(&self) -> &[u8] {
+        bytemuck::cast_slice(&self.data)
+    }
+    /// Texel at (x, y); `x < width`, `y < height`.
+    #[inline]
+    pub fn texel(&self, x: u32, y: u32) -> [u8; 4] {
+        self.data[y as usize * self.width as usize + x as usize]
+    }
+    /// Texel decoded to linear light (colour through the sRGB curve when the
+    /// image is sRGB, alpha always linear).
+    #[inline]
+    pub fn texel_linear(&self, x: u32, y: u32) -> [f32; 4] {
+        let t = self.texel(x, y);
+        decode(t, self.color_space)
+    }
+    /// Consumes the image and returns its texels.
+    pub fn into_texels(self) -> Vec<[u8; 4]> {
+        self.data
+    }
+}
+
+/// Decodes one texel to linear floats.
+#[inline]
+pub fn decode(t: [u8; 4], cs: ColorSpace) -> [f32; 4] {
+    match cs {
+        ColorSpace::Srgb => {
+            let lut = &*SRGB_LUT;
+            [lut[t[0] as usize], lut[t[1] as usize], lut[t[2] as usize], t[3] as f32 / 255.0]
+        }
+        ColorSpace::Linear => [t[0] as f32 / 255.0, t[1] as f32 / 255.0, t[2] as f32 / 255.0, t[3] as f32 / 255.0],
+    }
+}
+
+fn check_size(width: u32, height: u32) -> Result<(), CoreError> {
+    if width == 0 || height == 0 {
+        return Err(CoreError::InvalidImage(format!("image size {width}x{height} has a zero side")));
+    }
+    if width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
+        return Err(CoreError::InvalidImage(format!(
+            "image size {width}x{height} exceeds the limit of {MAX_IMAGE_SIDE} texels per side"
+        )));
+    }
+    Ok(())
+}
+
+/// sRGB electro-optical transfer: encoded value in [0, 1] to linear light.
+#[inline]
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+}
+
+/// Inverse of [`srgb_to_linear`]; input clamped to [0, 1].
+#[inline]
+pub fn linear_to_srgb(l: f32) -> f32 {
+    let l = if l.is_nan() { 0.0 } else { l.clamp(0.0, 1.0) };
+    if l <= 0.0031308 { l * 12.92 } else { 1.055 * l.powf(1.0 / 2.4) - 0.055 }
+}
+
+/// Linear light to an 8-bit sRGB code (round to nearest).
+#[inline]
+pub fn linear_to_srgb_u8(l: f32) -> u8 {
+    (linear_to_srgb(l) * 255.0 + 0.5) as u8
+}
+
+static SRGB_LUT: LazyLock<[f32; 256]> = LazyLock::new(|| {
+    let mut t = [0.0f32; 256];
+    for (i, v) in t.iter_mut().enumerate() {
+        *v = srgb_to_linear(i as f32 / 255.0);
+    }
+    t
+});
+
+/// 8-bit sRGB code to linear light (table lookup).
+#[inline]
+pub fn srgb_u8_to_linear(c: u8) -> f32 {
+    SRGB_LUT[c as usize]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_round_trip_is_exact_for_every_code() {
+        for c in 0..=255u8 {
+            assert_eq!(linear_to_srgb_u8(srgb_u8_to_linear(c)), c);
+        }
+    }
+
+    #[test]
+    fn size_mismatch_is_an_error() {
+        assert!(Image::new(2, 2, ColorSpace::Srgb, vec![[0; 4]; 3]).is_err());
+        assert!(Image::new(0, 2, ColorSpace::Srgb, vec![]).is_err());
+        assert!(Image::filled(MAX_IMAGE_SIDE + 1, 1, ColorSpace::Srgb, [0; 4]).is_err());
+    }
+
+    #[test]
+    fn nan_encodes_to_black() {
+        assert_eq!(linear_to_srgb_u8(f32::NAN), 0);
+        assert_eq!(linear_to_srgb_u8(7.0), 255);
+    }
+}

@@ -1,0 +1,13 @@
+//! Textures: images, MIP pyramids, samplers and procedural patterns.
+//!
+//! Data (the [`MipPyramid`]) is kept apart from options ([`SamplerOptions`])
+//! and from the lookup ([`sample`]), as in pbrt's `MIPMap`.
+
+pub mod image;
+pub mod procedural;
+pub mod pyramid;
+pub mod sampler;
+
+pub use image::{ColorSpace, Image, linear_to_srgb, linear_to_srgb_u8, srgb_to_linear, srgb_u8_to_linear};
+pub use pyramid::MipPyramid;
+pub use sampler::{Filter, Jacobian, LevelRule, SamplerOptions, Wrap, level_of_detail, sample};
