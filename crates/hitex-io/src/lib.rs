@@ -1,1 +1,60 @@
+//! hitex-io: the file formats of hitex.
+//!
+//! * images: PNG and JPEG in, PNG out (atomic writes), through the `image` crate;
+//! * meshes: Wavefront OBJ through `tobj`;
+//! * scenes: TOML files whose relative paths resolve against the file's folder.
+//!
+//! Every error names the file, and the record or key where known.
 
+pub mod image_io;
+pub mod obj;
+pub mod scene_file;
+
+pub use image_io::{load_image, save_png, write_atomic};
+pub use obj::load_obj;
+pub use scene_file::{FileLoader, load_scene};
+
+use std::path::PathBuf;
+use thiserror::Error;
+
+/// A file that could not be read, parsed or written.
+#[derive(Debug, Error)]
+pub enum IoError {
+    /// The file could not be opened or read.
+    #[error("{path}: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// What the OS said.
+        source: std::io::Error,
+    },
+    /// The file was read but its content is not valid.
+    #[error("{path}: {message}")]
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, with record or line where known.
+        message: String,
+    },
+    /// An output file could not be written.
+    #[error("cannot write {path}: {message}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        message: String,
+    },
+    /// A validation error from the core, without a file yet.
+    #[error("{0}")]
+    Core(#[from] hitex_core::CoreError),
+}
+
+impl IoError {
+    /// Attaches a file to a core error (other errors already carry one).
+    pub fn in_file(self, path: &std::path::Path) -> Self {
+        match self {
+            IoError::Core(e) => IoError::Format { path: path.to_path_buf(), message: e.to_string() },
+            other => other,
+        }
+    }
+}
