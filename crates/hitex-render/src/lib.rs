@@ -1,1 +1,72 @@
+//! hitex-render: two backends behind one trait.
+//!
+//! * [`cpu`]: a multi-threaded tiled rasterizer (top-left fill rule, 8-bit
+//!   sub-pixel precision, perspective-correct attributes, depth buffer, pixels
+//!   shaded in 2×2 quads) running the fragment programs of `cpu/*.rs`;
+//! * [`gpu`]: wgpu 30 running `shaders/*.wgsl`, the same programs in WGSL.
+//!
+//! Both consume the same [`prepare::PreparedScene`]: world-space vertices,
+//! `#[repr(C)]` uniform blocks and the texture pyramids, byte for byte.
 
+pub mod compare;
+pub mod cpu;
+pub mod gpu;
+pub mod prepare;
+
+pub use compare::{ImageDiff, compare_rgba};
+pub use cpu::CpuRenderer;
+pub use gpu::{GpuError, GpuRenderer, adapters_report};
+pub use prepare::PreparedScene;
+
+use thiserror::Error;
+
+/// A rendered image: RGBA8, sRGB-encoded, rows top to bottom.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `width * height * 4` bytes.
+    pub rgba: Vec<u8>,
+}
+
+/// Errors of a render.
+#[derive(Debug, Error)]
+pub enum RenderError {
+    /// The GPU backend failed (no adapter, device lost, out of memory, ...).
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+    /// The request itself is invalid (size, scene).
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// Which backend renders.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BackendChoice {
+    /// The GPU if an adapter exists, else the CPU.
+    #[default]
+    Auto,
+    /// The CPU reference renderer.
+    Cpu,
+    /// wgpu; an error if no adapter exists.
+    Gpu,
+}
+
+/// A renderer: one of the two backends.
+pub trait Renderer {
+    /// Human-readable name ("cpu (2 threads)", "gpu: llvmpipe (Vulkan)").
+    fn name(&self) -> String;
+    /// Renders a prepared scene at `width`×`height`.
+    fn render(&mut self, scene: &PreparedScene, width: u32, height: u32) -> Result<Frame, RenderError>;
+}
+
+/// Checks an output size.
+pub fn check_size(width: u32, height: u32) -> Result<(), RenderError> {
+    let max = hitex_core::scene::desc::MAX_OUTPUT_SIDE;
+    if width == 0 || height == 0 || width > max || height > max {
+        return Err(RenderError::Invalid(format!("output size {width}x{height} is outside 1..={max}")));
+    }
+    Ok(())
+}

@@ -1,0 +1,47 @@
+//! The CPU reference renderer.
+//!
+//! [`raster`] turns triangles into 2×2 pixel quads with perspective-correct
+//! varyings; each fragment program (one file per program, named like its WGSL
+//! twin in `shaders/`) shades a whole quad so that screen-space derivatives
+//! are lane differences, as on a GPU.
+
+pub mod raster;
+pub mod textured;
+
+use crate::prepare::PreparedScene;
+use crate::{Frame, RenderError, Renderer, check_size};
+use hitex_core::scene::Camera;
+
+/// The CPU backend. Uses the rayon thread pool (all cores unless
+/// `RAYON_NUM_THREADS` says otherwise).
+#[derive(Debug, Default, Clone)]
+pub struct CpuRenderer;
+
+impl CpuRenderer {
+    /// A CPU renderer.
+    pub fn new() -> Self {
+        Self
+    }
+
+    /// Renders `scene` seen by `camera`.
+    pub fn render_view(&self, scene: &PreparedScene, camera: &Camera, width: u32, height: u32) -> Result<Frame, RenderError> {
+        check_size(width, height)?;
+        let frame = scene.frame_uniform(camera, width, height);
+        let program = textured::TexturedProgram::new(scene, &frame);
+        let mut target = raster::Target::new(width, height, crate::prepare::background_rgba8(&frame));
+        let varyings: Vec<[f32; textured::VARYINGS]> = scene.vertices.iter().map(textured::varyings).collect();
+        let positions: Vec<glam::Vec3> = scene.vertices.iter().map(|v| glam::Vec3::from_array(v.position)).collect();
+        let view_proj = glam::Mat4::from_cols_array_2d(&frame.view_proj);
+        raster::rasterize(&mut target, view_proj, &positions, &varyings, &scene.indices, &scene.draws, &program);
+        Ok(Frame { width, height, rgba: target.into_rgba() })
+    }
+}
+
+impl Renderer for CpuRenderer {
+    fn name(&self) -> String {
+        format!("cpu ({} threads)", rayon::current_num_threads())
+    }
+    fn render(&mut self, scene: &PreparedScene, width: u32, height: u32) -> Result<Frame, RenderError> {
+        self.render_view(scene, &scene.camera, width, height)
+    }
+}

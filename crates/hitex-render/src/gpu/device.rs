@@ -1,0 +1,113 @@
+//! Adapter choice, device creation and the adapter report of `hitex info`.
+
+use super::GpuError;
+use std::fmt::Write;
+
+/// A wgpu instance honouring `WGPU_BACKEND` and the other wgpu environment variables.
+pub fn instance() -> wgpu::Instance {
+    wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
+}
+
+/// Ranks adapters: real GPUs first, then software Vulkan (lavapipe), then GL.
+fn rank(info: &wgpu::AdapterInfo) -> u32 {
+    let kind = match info.device_type {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Cpu => 3,
+        wgpu::DeviceType::Other => 4,
+    };
+    let backend = match info.backend {
+        wgpu::Backend::Vulkan | wgpu::Backend::Metal | wgpu::Backend::Dx12 => 0,
+        _ => 1,
+    };
+    kind * 2 + backend
+}
+
+/// Every adapter the instance finds, best first.
+pub fn adapters(instance: &wgpu::Instance) -> Vec<wgpu::Adapter> {
+    let mut list = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+    list.sort_by_key(|a| rank(&a.get_info()));
+    list
+}
+
+/// An open device with its adapter.
+pub struct GpuContext {
+    /// The chosen adapter.
+    pub adapter: wgpu::Adapter,
+    /// Its device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// Adapter description.
+    pub info: wgpu::AdapterInfo,
+}
+
+impl GpuContext {
+    /// Opens the best adapter, requesting its own limits and the features
+    /// hitex can use (BC texture compression, filterable float textures).
+    pub fn new() -> Result<Self, GpuError> {
+        let instance = instance();
+        let adapter = adapters(&instance).into_iter().next().ok_or(GpuError::NoAdapter)?;
+        let info = adapter.get_info();
+        let wanted = wgpu::Features::TEXTURE_COMPRESSION_BC | wgpu::Features::FLOAT32_FILTERABLE;
+        let desc = wgpu::DeviceDescriptor {
+            label: Some("hitex"),
+            required_features: adapter.features() & wanted,
+            required_limits: adapter.limits(),
+            ..Default::default()
+        };
+        let (device, queue) = pollster::block_on(adapter.request_device(&desc))
+            .map_err(|e| GpuError::Device(format!("{} ({:?}): {e}", info.name, info.backend)))?;
+        // errors outside an error scope are reported, never a panic
+        device.on_uncaptured_error(std::sync::Arc::new(|e: wgpu::Error| {
+            eprintln!("hitex: GPU error: {e}");
+        }));
+        Ok(Self { adapter, device, queue, info })
+    }
+
+    /// "llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)".
+    pub fn describe(&self) -> String {
+        describe(&self.info)
+    }
+}
+
+/// One-line adapter description.
+pub fn describe(info: &wgpu::AdapterInfo) -> String {
+    format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type)
+}
+
+/// Multi-line report of every adapter: name, backend, type, driver, the
+/// features hitex cares about and the main limits.
+pub fn adapters_report() -> String {
+    let instance = instance();
+    let list = adapters(&instance);
+    let mut s = String::new();
+    if list.is_empty() {
+        s.push_str("no GPU adapter found (install mesa-vulkan-drivers for lavapipe); the CPU backend is used\n");
+        return s;
+    }
+    for (i, a) in list.iter().enumerate() {
+        let info = a.get_info();
+        let f = a.features();
+        let l = a.limits();
+        let _ = writeln!(s, "adapter {i}{}: {}", if i == 0 { " (chosen)" } else { "" }, describe(&info));
+        let _ = writeln!(s, "  driver: {} {}", info.driver, info.driver_info);
+        let _ = writeln!(
+            s,
+            "  features: TEXTURE_COMPRESSION_BC {}, FLOAT32_FILTERABLE {}",
+            f.contains(wgpu::Features::TEXTURE_COMPRESSION_BC),
+            f.contains(wgpu::Features::FLOAT32_FILTERABLE)
+        );
+        let _ = writeln!(
+            s,
+            "  limits: 2-D {}, 3-D {}, array layers {}, storage binding {} MiB, buffer {} MiB",
+            l.max_texture_dimension_2d,
+            l.max_texture_dimension_3d,
+            l.max_texture_array_layers,
+            l.max_storage_buffer_binding_size >> 20,
+            l.max_buffer_size >> 20
+        );
+    }
+    s
+}

@@ -1,0 +1,398 @@
+//! The wgpu backend: headless render to an offscreen target and readback.
+//! Runs `shaders/textured.wgsl`, the twin of `cpu/textured.rs`.
+
+pub mod device;
+
+pub use device::{GpuContext, adapters_report};
+
+use crate::prepare::{MaterialUniform, PreparedScene, Vertex, background_rgba8};
+use crate::{Frame, RenderError, Renderer, check_size};
+use hitex_core::scene::Camera;
+use hitex_core::texture::{ColorSpace, MipPyramid};
+use std::sync::Arc;
+use thiserror::Error;
+use wgpu::util::DeviceExt;
+
+/// GPU failures.
+#[derive(Debug, Error)]
+pub enum GpuError {
+    /// No adapter at all.
+    #[error("no GPU adapter found (install Mesa's lavapipe: apt-get install mesa-vulkan-drivers libvulkan1)")]
+    NoAdapter,
+    /// The adapter refused a device.
+    #[error("cannot open a GPU device: {0}")]
+    Device(String),
+    /// wgpu reported a validation or out-of-memory error during a render.
+    #[error("GPU error during rendering: {0}")]
+    Render(String),
+    /// The output could not be read back.
+    #[error("GPU readback failed: {0}")]
+    Readback(String),
+}
+
+/// The textured-mesh shader source.
+pub const TEXTURED_WGSL: &str = include_str!("../../shaders/textured.wgsl");
+
+struct Uploaded {
+    key: usize,
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    material_groups: Vec<wgpu::BindGroup>,
+    _textures: Vec<wgpu::Texture>,
+}
+
+struct TargetSet {
+    width: u32,
+    height: u32,
+    color: wgpu::Texture,
+    depth: wgpu::Texture,
+    readback: wgpu::Buffer,
+    padded_row: u32,
+}
+
+/// The GPU renderer. Keeps uploaded scene data and targets between frames.
+pub struct GpuRenderer {
+    ctx: GpuContext,
+    pipeline: wgpu::RenderPipeline,
+    frame_layout: wgpu::BindGroupLayout,
+    material_layout: wgpu::BindGroupLayout,
+    frame_buffer: wgpu::Buffer,
+    frame_group: wgpu::BindGroup,
+    uploaded: Option<Uploaded>,
+    target: Option<TargetSet>,
+}
+
+impl GpuRenderer {
+    /// Opens the best adapter and builds the pipeline.
+    pub fn new() -> Result<Self, GpuError> {
+        let ctx = GpuContext::new()?;
+        let device = &ctx.device;
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("textured.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(TEXTURED_WGSL.into()),
+        });
+        let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("frame"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+                count: None,
+            }],
+        });
+        let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("material"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("textured"),
+            bind_group_layouts: &[Some(&frame_layout), Some(&material_layout)],
+            immediate_size: 0,
+        });
+        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2];
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("textured"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<Vertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &attributes,
+                })],
+            },
+            primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: wgpu::TextureFormat::Rgba8Unorm,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(GpuError::Device(format!("pipeline creation failed: {e}")));
+        }
+        let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame"),
+            size: std::mem::size_of::<crate::prepare::FrameUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let frame_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("frame"),
+            layout: &frame_layout,
+            entries: &[wgpu::BindGroupEntry { binding: 0, resource: frame_buffer.as_entire_binding() }],
+        });
+        Ok(Self { ctx, pipeline, frame_layout, material_layout, frame_buffer, frame_group, uploaded: None, target: None })
+    }
+
+    /// Description of the adapter in use.
+    pub fn adapter(&self) -> String {
+        self.ctx.describe()
+    }
+
+    /// The open device and its adapter.
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    fn upload_texture(&self, pyr: &MipPyramid) -> wgpu::Texture {
+        let format = match pyr.color_space() {
+            ColorSpace::Srgb => wgpu::TextureFormat::Rgba8UnormSrgb,
+            ColorSpace::Linear => wgpu::TextureFormat::Rgba8Unorm,
+        };
+        let tex = self.ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("pyramid"),
+            size: wgpu::Extent3d { width: pyr.width(), height: pyr.height(), depth_or_array_layers: 1 },
+            mip_level_count: pyr.level_count() as u32,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        for (l, img) in pyr.levels().iter().enumerate() {
+            self.ctx.queue.write_texture(
+                wgpu::TexelCopyTextureInfo { texture: &tex, mip_level: l as u32, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+                img.bytes(),
+                wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(4 * img.width()), rows_per_image: Some(img.height()) },
+                wgpu::Extent3d { width: img.width(), height: img.height(), depth_or_array_layers: 1 },
+            );
+        }
+        tex
+    }
+
+    fn upload(&mut self, scene: &PreparedScene) {
+        let key = scene as *const PreparedScene as usize ^ scene.vertices.as_ptr() as usize;
+        if self.uploaded.as_ref().is_some_and(|u| u.key == key) {
+            return;
+        }
+        let device = &self.ctx.device;
+        let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vertices"),
+            contents: bytemuck::cast_slice(&scene.vertices),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("indices"),
+            contents: bytemuck::cast_slice(&scene.indices),
+            usage: wgpu::BufferUsages::INDEX,
+        });
+        let white = match hitex_core::texture::Image::filled(1, 1, ColorSpace::Srgb, [255; 4]) {
+            Ok(img) => MipPyramid::single(img),
+            Err(_) => unreachable!("a 1x1 image is valid"),
+        };
+        let mut textures = Vec::new();
+        let mut groups = Vec::new();
+        let mut cache: Vec<(*const MipPyramid, usize)> = Vec::new();
+        for (m, t) in scene.materials.iter().zip(&scene.material_textures) {
+            let pyr: &MipPyramid = t.as_deref().unwrap_or(&white);
+            let ptr = pyr as *const MipPyramid;
+            let ti = match cache.iter().find(|(p, _)| *p == ptr && t.is_some()) {
+                Some((_, i)) => *i,
+                None => {
+                    textures.push(self.upload_texture(pyr));
+                    cache.push((ptr, textures.len() - 1));
+                    textures.len() - 1
+                }
+            };
+            let ubuf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("material"),
+                contents: bytemuck::bytes_of::<MaterialUniform>(m),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let view = textures[ti].create_view(&Default::default());
+            groups.push(device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("material"),
+                layout: &self.material_layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: ubuf.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&view) },
+                ],
+            }));
+        }
+        let _ = &self.frame_layout;
+        self.uploaded = Some(Uploaded { key, vertices, indices, material_groups: groups, _textures: textures });
+    }
+
+    fn ensure_target(&mut self, width: u32, height: u32) {
+        if self.target.as_ref().is_some_and(|t| t.width == width && t.height == height) {
+            return;
+        }
+        let device = &self.ctx.device;
+        let size = wgpu::Extent3d { width, height, depth_or_array_layers: 1 };
+        let color = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("color"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba8Unorm,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let depth = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("depth"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Depth32Float,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        });
+        let padded_row = (4 * width).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: padded_row as u64 * height as u64,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        self.target = Some(TargetSet { width, height, color, depth, readback, padded_row });
+    }
+
+    /// Renders `scene` seen by `camera` and reads the image back.
+    pub fn render_view(&mut self, scene: &PreparedScene, camera: &Camera, width: u32, height: u32) -> Result<Frame, RenderError> {
+        check_size(width, height)?;
+        let max = self.ctx.device.limits().max_texture_dimension_2d;
+        if width > max || height > max {
+            return Err(RenderError::Invalid(format!("{width}x{height} exceeds the adapter's limit of {max} pixels per side")));
+        }
+        self.upload(scene);
+        self.ensure_target(width, height);
+        let (Some(up), Some(tg)) = (self.uploaded.as_ref(), self.target.as_ref()) else {
+            return Err(RenderError::Gpu(GpuError::Render("resources missing after upload".into())));
+        };
+        let device = &self.ctx.device;
+        let queue = &self.ctx.queue;
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let frame = scene.frame_uniform(camera, width, height);
+        queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&frame));
+        let bg = background_rgba8(&frame);
+        let color_view = tg.color.create_view(&Default::default());
+        let depth_view = tg.depth.create_view(&Default::default());
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
+        {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("textured"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &color_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: bg[0] as f64 / 255.0,
+                            g: bg[1] as f64 / 255.0,
+                            b: bg[2] as f64 / 255.0,
+                            a: 1.0,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &depth_view,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.frame_group, &[]);
+            pass.set_vertex_buffer(0, up.vertices.slice(..));
+            pass.set_index_buffer(up.indices.slice(..), wgpu::IndexFormat::Uint32);
+            for d in &scene.draws {
+                pass.set_bind_group(1, &up.material_groups[d.material], &[]);
+                pass.draw_indexed(d.first_index..d.first_index + d.index_count, 0, 0..1);
+            }
+        }
+        enc.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo { texture: &tg.color, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &tg.readback,
+                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(tg.padded_row), rows_per_image: Some(height) },
+            },
+            wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+        );
+        queue.submit([enc.finish()]);
+        if let Some(e) = pollster::block_on(oom.pop()) {
+            return Err(GpuError::Render(e.to_string()).into());
+        }
+        if let Some(e) = pollster::block_on(validation.pop()) {
+            return Err(GpuError::Render(e.to_string()).into());
+        }
+        let rgba = read_back(device, &tg.readback, width, height, tg.padded_row)?;
+        Ok(Frame { width, height, rgba })
+    }
+}
+
+fn read_back(device: &wgpu::Device, buf: &wgpu::Buffer, width: u32, height: u32, padded_row: u32) -> Result<Vec<u8>, GpuError> {
+    let slice = buf.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Readback(e.to_string()))?;
+    match rx.recv() {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => return Err(GpuError::Readback(e.to_string())),
+        Err(e) => return Err(GpuError::Readback(e.to_string())),
+    }
+    let mut out = Vec::with_capacity(width as usize * height as usize * 4);
+    {
+        let view = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
+        for row in view.chunks(padded_row as usize).take(height as usize) {
+            out.extend_from_slice(&row[..4 * width as usize]);
+        }
+    }
+    buf.unmap();
+    Ok(out)
+}
+
+impl Renderer for GpuRenderer {
+    fn name(&self) -> String {
+        format!("gpu: {}", self.adapter())
+    }
+    fn render(&mut self, scene: &PreparedScene, width: u32, height: u32) -> Result<Frame, RenderError> {
+        self.render_view(scene, &scene.camera, width, height)
+    }
+}
+
+/// Keeps `Arc` in the public signature set used by callers sharing pyramids.
+pub type SharedPyramid = Arc<MipPyramid>;
