@@ -1,1 +1,246 @@
-fn main() {}
+//! `hitex`: the command-line tool.
+
+mod bench;
+mod demo;
+
+use clap::{Parser, Subcommand, ValueEnum};
+use hitex_core::scene::RenderMode;
+use hitex_render::{BackendChoice, CpuRenderer, Frame, GpuRenderer, PreparedScene, RenderError};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+/// High-fidelity texture mapping and exact surface rendering.
+#[derive(Parser)]
+#[command(name = "hitex", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render the embedded showcase (no files needed) into a folder.
+    Demo {
+        /// Output folder.
+        #[arg(short, long, default_value = "out")]
+        out: PathBuf,
+        /// Which renderer to use.
+        #[arg(long, value_enum, default_value_t = Backend::Auto)]
+        backend: Backend,
+        /// Output size, WIDTHxHEIGHT.
+        #[arg(long, value_parser = parse_size, default_value = "960x540")]
+        size: (u32, u32),
+        /// Write the showcase scene file (a commented example of every key) and exit.
+        #[arg(long)]
+        print_scene: bool,
+    },
+    /// Render a scene file to a PNG.
+    Render {
+        /// Scene file (TOML).
+        scene: PathBuf,
+        /// Output PNG.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Output size, WIDTHxHEIGHT (default: the scene's).
+        #[arg(long, value_parser = parse_size)]
+        size: Option<(u32, u32)>,
+        /// Which renderer to use.
+        #[arg(long, value_enum, default_value_t = Backend::Auto)]
+        backend: Backend,
+        /// Output mode (default: the scene's).
+        #[arg(long, value_enum)]
+        mode: Option<Mode>,
+    },
+    /// List GPU adapters, their features and limits.
+    Info,
+    /// Benchmarks: CPU and GPU renderers on the same frames.
+    Bench {
+        #[command(subcommand)]
+        which: BenchCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Textured meshes with nearest, bilinear and trilinear filtering.
+    Texture(bench::TextureArgs),
+}
+
+#[derive(Clone, Copy, ValueEnum, PartialEq, Eq, Debug)]
+enum Backend {
+    Auto,
+    Cpu,
+    Gpu,
+}
+
+#[derive(Clone, Copy, ValueEnum, Debug)]
+enum Mode {
+    Shaded,
+    Uv,
+    Level,
+    Normal,
+}
+
+impl From<Mode> for RenderMode {
+    fn from(m: Mode) -> Self {
+        match m {
+            Mode::Shaded => RenderMode::Shaded,
+            Mode::Uv => RenderMode::Uv,
+            Mode::Level => RenderMode::Level,
+            Mode::Normal => RenderMode::Normal,
+        }
+    }
+}
+
+impl From<Backend> for BackendChoice {
+    fn from(b: Backend) -> Self {
+        match b {
+            Backend::Auto => BackendChoice::Auto,
+            Backend::Cpu => BackendChoice::Cpu,
+            Backend::Gpu => BackendChoice::Gpu,
+        }
+    }
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT"))?;
+    let w: u32 = w.trim().parse().map_err(|_| format!("width '{w}' is not a positive integer"))?;
+    let h: u32 = h.trim().parse().map_err(|_| format!("height '{h}' is not a positive integer"))?;
+    let max = hitex_core::scene::desc::MAX_OUTPUT_SIDE;
+    if w == 0 || h == 0 || w > max || h > max {
+        return Err(format!("{w}x{h} is outside 1..={max}"));
+    }
+    Ok((w, h))
+}
+
+/// A CLI failure: bad input (exit 2) or an internal failure (exit 1).
+#[derive(Debug)]
+pub enum CliError {
+    /// The user's input is wrong.
+    Input(String),
+    /// Something failed that is not the input's fault.
+    Internal(String),
+}
+
+impl From<hitex_io::IoError> for CliError {
+    fn from(e: hitex_io::IoError) -> Self {
+        match e {
+            hitex_io::IoError::Write { .. } => CliError::Internal(e.to_string()),
+            _ => CliError::Input(e.to_string()),
+        }
+    }
+}
+
+impl From<RenderError> for CliError {
+    fn from(e: RenderError) -> Self {
+        match e {
+            RenderError::Invalid(m) => CliError::Input(m),
+            RenderError::Gpu(g) => CliError::Internal(g.to_string()),
+        }
+    }
+}
+
+/// One of the two backends, chosen at run time.
+pub enum AnyRenderer {
+    /// CPU reference renderer.
+    Cpu(CpuRenderer),
+    /// wgpu renderer.
+    Gpu(Box<GpuRenderer>),
+}
+
+impl AnyRenderer {
+    /// Opens the requested backend; `auto` falls back to the CPU and says so on stderr.
+    pub fn open(choice: BackendChoice) -> Result<Self, CliError> {
+        match choice {
+            BackendChoice::Cpu => Ok(Self::Cpu(CpuRenderer::new())),
+            BackendChoice::Gpu => GpuRenderer::new().map(|g| Self::Gpu(Box::new(g))).map_err(|e| CliError::Internal(e.to_string())),
+            BackendChoice::Auto => match GpuRenderer::new() {
+                Ok(g) => Ok(Self::Gpu(Box::new(g))),
+                Err(e) => {
+                    eprintln!("hitex: {e}; falling back to the CPU backend");
+                    Ok(Self::Cpu(CpuRenderer::new()))
+                }
+            },
+        }
+    }
+    /// Backend description.
+    pub fn name(&self) -> String {
+        match self {
+            Self::Cpu(_) => format!("cpu ({} threads)", rayon_threads()),
+            Self::Gpu(g) => format!("gpu: {}", g.adapter()),
+        }
+    }
+    /// Renders one frame.
+    pub fn render(&mut self, scene: &PreparedScene, camera: &hitex_core::scene::Camera, w: u32, h: u32) -> Result<Frame, RenderError> {
+        match self {
+            Self::Cpu(c) => c.render_view(scene, camera, w, h),
+            Self::Gpu(g) => g.render_view(scene, camera, w, h),
+        }
+    }
+}
+
+fn rayon_threads() -> usize {
+    std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+}
+
+/// Writes a frame as PNG.
+pub fn save(frame: &Frame, path: &Path) -> Result<(), CliError> {
+    hitex_io::save_png(path, frame.width, frame.height, &frame.rgba).map_err(CliError::from)
+}
+
+fn run(cli: Cli) -> Result<(), CliError> {
+    match cli.command {
+        Command::Demo { out, backend, size, print_scene } => {
+            if print_scene {
+                print!("{}", hitex_core::scene::SHOWCASE_TOML);
+                return Ok(());
+            }
+            demo::run(&out, backend.into(), size)
+        }
+        Command::Render { scene, output, size, backend, mode } => {
+            let mut s = hitex_io::load_scene(&scene)?;
+            if let Some(m) = mode {
+                s.mode = m.into();
+            }
+            let (w, h) = size.unwrap_or((s.width, s.height));
+            let prepared = PreparedScene::new(&s);
+            let mut r = AnyRenderer::open(backend.into())?;
+            let t = Instant::now();
+            let frame = r.render(&prepared, &prepared.camera, w, h)?;
+            let ms = t.elapsed().as_secs_f64() * 1e3;
+            save(&frame, &output)?;
+            println!(
+                "wrote {} ({w}x{h}, {} triangles, {}) in {ms:.1} ms",
+                output.display(),
+                prepared.triangle_count(),
+                r.name()
+            );
+            Ok(())
+        }
+        Command::Info => {
+            println!("hitex {}", env!("CARGO_PKG_VERSION"));
+            println!("cpu backend: {} threads", rayon_threads());
+            print!("{}", hitex_render::adapters_report());
+            Ok(())
+        }
+        Command::Bench { which } => match which {
+            BenchCommand::Texture(args) => bench::texture(args),
+        },
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(CliError::Input(m)) => {
+            eprintln!("hitex: error: {m}");
+            ExitCode::from(2)
+        }
+        Err(CliError::Internal(m)) => {
+            eprintln!("hitex: internal error: {m}");
+            ExitCode::from(1)
+        }
+    }
+}

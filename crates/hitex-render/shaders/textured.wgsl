@@ -22,7 +22,7 @@ struct Material {
     specular: f32,
     shininess: f32,
     has_texture: u32,
-    filter: u32,     // 0 nearest, 1 bilinear, 2 trilinear
+    filter_mode: u32, // 0 nearest, 1 bilinear, 2 trilinear
     wrap: u32,       // 0 repeat, 1 clamp, 2 mirror
     level_rule: u32, // 0 max-partial (paper eq. 2), 1 vulkan-rho
     lod_bias: f32,
@@ -109,15 +109,22 @@ fn level_of_detail(rule: u32, jac: vec4<f32>, size: vec2<u32>) -> f32 {
     return NO_LEVEL;
 }
 
+// Size of a MIP level from the uniform, not textureDimensions(tex, level):
+// llvmpipe answers size queries with one level per SIMD group, which is wrong
+// when neighbouring pixels select different levels.
+fn level_size(level: i32) -> vec2<i32> {
+    return max(vec2<i32>(material.size) >> vec2<u32>(u32(level)), vec2<i32>(1));
+}
+
 fn nearest(wrap: u32, uv: vec2<f32>) -> vec4<f32> {
-    let d = vec2<i32>(textureDimensions(tex, 0));
+    let d = level_size(0);
     let x = wrap_index(i32(floor(uv.x * f32(d.x))), d.x, wrap);
     let y = wrap_index(i32(floor(uv.y * f32(d.y))), d.y, wrap);
     return textureLoad(tex, vec2<i32>(x, y), 0);
 }
 
 fn bilinear(level: i32, wrap: u32, uv: vec2<f32>) -> vec4<f32> {
-    let d = vec2<i32>(textureDimensions(tex, level));
+    let d = level_size(level);
     let x = uv.x * f32(d.x) - 0.5;
     let y = uv.y * f32(d.y) - 0.5;
     let xf = floor(x);
@@ -141,10 +148,10 @@ fn bilinear(level: i32, wrap: u32, uv: vec2<f32>) -> vec4<f32> {
 
 fn sample(uv_in: vec2<f32>, jac: vec4<f32>) -> vec4<f32> {
     let uv = vec2<f32>(reduce(uv_in.x, material.wrap), reduce(uv_in.y, material.wrap));
-    if material.filter == 0u {
+    if material.filter_mode == 0u {
         return nearest(material.wrap, uv);
     }
-    if material.filter == 1u {
+    if material.filter_mode == 1u {
         return bilinear(0, material.wrap, uv);
     }
     // level selection

@@ -108,9 +108,29 @@ pub struct PreparedScene {
     pub background: Vec3,
     /// Output mode.
     pub mode: RenderMode,
+    /// Identity of the uploaded content: GPU backends keep uploads per id.
+    /// Call [`PreparedScene::touch`] after changing geometry or materials.
+    id: u64,
+}
+
+static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+
+fn next_id() -> u64 {
+    NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
 }
 
 impl PreparedScene {
+    /// Identity of the content (changes with [`PreparedScene::touch`]).
+    pub fn id(&self) -> u64 {
+        self.id
+    }
+
+    /// Marks geometry, materials or textures as changed, so that GPU
+    /// backends upload them again.
+    pub fn touch(&mut self) {
+        self.id = next_id();
+    }
+
     /// Transforms every object to world space and packs the uniforms.
     pub fn new(scene: &Scene) -> Self {
         let mut vertices = Vec::new();
@@ -170,6 +190,7 @@ impl PreparedScene {
             ambient: scene.ambient,
             background: scene.background,
             mode: scene.mode,
+            id: next_id(),
         }
     }
 

@@ -34,7 +34,7 @@ pub enum GpuError {
 pub const TEXTURED_WGSL: &str = include_str!("../../shaders/textured.wgsl");
 
 struct Uploaded {
-    key: usize,
+    key: u64,
     vertices: wgpu::Buffer,
     indices: wgpu::Buffer,
     material_groups: Vec<wgpu::BindGroup>,
@@ -197,7 +197,7 @@ impl GpuRenderer {
     }
 
     fn upload(&mut self, scene: &PreparedScene) {
-        let key = scene as *const PreparedScene as usize ^ scene.vertices.as_ptr() as usize;
+        let key = scene.id();
         if self.uploaded.as_ref().is_some_and(|u| u.key == key) {
             return;
         }

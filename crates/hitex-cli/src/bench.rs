@@ -1,0 +1,291 @@
+//! `hitex bench …`: CPU and GPU renderers on the same frames, in one run.
+//!
+//! Every pillar's benchmark reports rows of the same JSON shape:
+//! `{"bench": NAME, "rows": [{"case", "backend", "adapter", "width", "height",
+//! "frames", "ms_median", "fps_median"}], "ratios": [...], "parity": [...]}`.
+
+use crate::{AnyRenderer, CliError, parse_size};
+use hitex_core::scene::{Scene, showcase_scene};
+use hitex_core::texture::Filter;
+use hitex_render::{BackendChoice, PreparedScene, compare_rgba};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Which backends a benchmark runs.
+#[derive(Clone, Copy, clap::ValueEnum, PartialEq, Eq, Debug)]
+pub enum Backends {
+    /// CPU and GPU (the GPU is skipped, with a message, when no adapter exists).
+    Both,
+    /// CPU only.
+    Cpu,
+    /// GPU only.
+    Gpu,
+}
+
+/// Arguments of `hitex bench texture`.
+#[derive(clap::Args, Debug)]
+pub struct TextureArgs {
+    /// Print JSON on stdout instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Frames per case (the camera makes one full orbit over them).
+    #[arg(long, default_value_t = 24)]
+    pub frames: u32,
+    /// Frame size, WIDTHxHEIGHT.
+    #[arg(long, value_parser = parse_size, default_value = "1024x768")]
+    pub size: (u32, u32),
+    /// Backends to run.
+    #[arg(long, value_enum, default_value_t = Backends::Both)]
+    pub backends: Backends,
+    /// Also write a bar chart (SVG) of the medians.
+    #[arg(long)]
+    pub chart: Option<PathBuf>,
+}
+
+/// One measured (case, backend) pair.
+#[derive(Debug, Clone, Serialize)]
+pub struct Row {
+    /// Case name.
+    pub case: String,
+    /// "cpu" or "gpu".
+    pub backend: String,
+    /// Adapter or thread count.
+    pub adapter: String,
+    /// Frame width.
+    pub width: u32,
+    /// Frame height.
+    pub height: u32,
+    /// Timed frames.
+    pub frames: u32,
+    /// Median frame time.
+    pub ms_median: f64,
+    /// 1000 / ms_median.
+    pub fps_median: f64,
+}
+
+/// GPU median over CPU median for a case.
+#[derive(Debug, Clone, Serialize)]
+pub struct Ratio {
+    /// Case name.
+    pub case: String,
+    /// gpu ms / cpu ms (> 1: the CPU is faster).
+    pub gpu_over_cpu: f64,
+}
+
+/// Agreement of the two backends on the first frame of a case.
+#[derive(Debug, Clone, Serialize)]
+pub struct Parity {
+    /// Case name.
+    pub case: String,
+    /// Mean absolute channel difference in 8-bit steps.
+    pub mean_abs: f64,
+    /// 99th percentile of the per-pixel max channel difference.
+    pub p99: u8,
+}
+
+/// A whole benchmark report.
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    /// Benchmark name.
+    pub bench: String,
+    /// Measurements.
+    pub rows: Vec<Row>,
+    /// GPU/CPU ratios per case.
+    pub ratios: Vec<Ratio>,
+    /// CPU-vs-GPU image agreement per case.
+    pub parity: Vec<Parity>,
+}
+
+/// Median of a non-empty list.
+pub fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    let n = v.len();
+    if n == 0 {
+        return f64::NAN;
+    }
+    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+}
+
+fn progress(total: u64, quiet: bool) -> ProgressBar {
+    if quiet && !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(total);
+    pb.set_style(
+        ProgressStyle::with_template("{prefix:>24} [{bar:30}] {pos}/{len} frames {elapsed}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    pb
+}
+
+/// Runs `cases` on the chosen backends: a warm-up frame, then `frames` timed
+/// frames orbiting the camera once; compares the first frame of both backends.
+pub fn run_cases(name: &str, cases: &[(String, Scene)], frames: u32, (w, h): (u32, u32), which: Backends, quiet: bool) -> Result<Report, CliError> {
+    let mut backends: Vec<(&str, AnyRenderer)> = Vec::new();
+    if which != Backends::Gpu {
+        backends.push(("cpu", AnyRenderer::open(BackendChoice::Cpu)?));
+    }
+    if which != Backends::Cpu {
+        match AnyRenderer::open(BackendChoice::Gpu) {
+            Ok(g) => backends.push(("gpu", g)),
+            Err(CliError::Internal(m)) | Err(CliError::Input(m)) if which == Backends::Both => {
+                eprintln!("hitex bench: GPU backend skipped: {m}");
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    let frames = frames.max(1);
+    let mut rows = Vec::new();
+    let mut parity = Vec::new();
+    for (case, scene) in cases {
+        let prepared = PreparedScene::new(scene);
+        let mut first_frames = Vec::new();
+        for (kind, r) in backends.iter_mut() {
+            let pb = progress(frames as u64, quiet);
+            pb.set_prefix(format!("{case} {kind}"));
+            // warm-up: uploads, shader compilation, caches
+            let f0 = r.render(&prepared, &prepared.camera, w, h)?;
+            first_frames.push(f0);
+            let mut times = Vec::new();
+            for i in 0..frames {
+                let cam = prepared.camera.orbit(std::f32::consts::TAU * i as f32 / frames as f32);
+                let t = Instant::now();
+                let f = r.render(&prepared, &cam, w, h)?;
+                times.push(t.elapsed().as_secs_f64() * 1e3);
+                std::hint::black_box(&f);
+                pb.inc(1);
+            }
+            pb.finish_and_clear();
+            let ms = median(&mut times);
+            rows.push(Row {
+                case: case.clone(),
+                backend: kind.to_string(),
+                adapter: r.name(),
+                width: w,
+                height: h,
+                frames,
+                ms_median: ms,
+                fps_median: 1e3 / ms,
+            });
+        }
+        if first_frames.len() == 2 {
+            let (d, _) = compare_rgba(&first_frames[0].rgba, &first_frames[1].rgba);
+            parity.push(Parity { case: case.clone(), mean_abs: d.mean_abs, p99: d.p99 });
+        }
+    }
+    let mut ratios = Vec::new();
+    for (case, _) in cases {
+        let cpu = rows.iter().find(|r| &r.case == case && r.backend == "cpu");
+        let gpu = rows.iter().find(|r| &r.case == case && r.backend == "gpu");
+        if let (Some(c), Some(g)) = (cpu, gpu) {
+            ratios.push(Ratio { case: case.clone(), gpu_over_cpu: g.ms_median / c.ms_median });
+        }
+    }
+    Ok(Report { bench: name.to_string(), rows, ratios, parity })
+}
+
+/// Prints a report as a table.
+pub fn print_table(r: &Report) {
+    println!("{:<14} {:<4} {:<44} {:>10} {:>8} {:>8}", "case", "be", "adapter", "size", "ms", "fps");
+    for row in &r.rows {
+        println!(
+            "{:<14} {:<4} {:<44} {:>10} {:>8.2} {:>8.1}",
+            row.case,
+            row.backend,
+            row.adapter,
+            format!("{}x{}", row.width, row.height),
+            row.ms_median,
+            row.fps_median
+        );
+    }
+    for q in &r.ratios {
+        println!("{:<14} gpu/cpu median ratio {:.2} ({})", q.case, q.gpu_over_cpu, if q.gpu_over_cpu > 1.0 { "CPU faster" } else { "GPU faster" });
+    }
+    for p in &r.parity {
+        println!("{:<14} cpu vs gpu first frame: mean |Δ| {:.3}, p99 {} (8-bit steps)", p.case, p.mean_abs, p.p99);
+    }
+}
+
+/// Writes a horizontal bar chart of the medians as SVG.
+pub fn write_chart(r: &Report, path: &std::path::Path) -> Result<(), CliError> {
+    let bar_h = 22.0;
+    let left = 260.0;
+    let width = 760.0;
+    let max = r.rows.iter().map(|x| x.ms_median).fold(1e-9, f64::max);
+    let height = 60.0 + bar_h * r.rows.len() as f64;
+    let mut s = format!(
+        "<svg xmlns='http://www.w3.org/2000/svg' width='{width}' height='{height}' font-family='sans-serif' font-size='13'>\n\
+         <rect width='100%' height='100%' fill='white'/>\n<text x='10' y='22' font-size='15'>hitex bench {}: median ms per frame (shorter is faster)</text>\n",
+        r.bench
+    );
+    for (i, row) in r.rows.iter().enumerate() {
+        let y = 40.0 + i as f64 * bar_h;
+        let w = (width - left - 80.0) * row.ms_median / max;
+        let color = if row.backend == "cpu" { "#3b7dd8" } else { "#d8703b" };
+        s += &format!(
+            "<text x='10' y='{:.0}'>{} · {}</text><rect x='{left}' y='{:.0}' width='{w:.1}' height='{:.0}' fill='{color}'/><text x='{:.1}' y='{:.0}'>{:.1} ms</text>\n",
+            y + 15.0,
+            row.case,
+            row.backend,
+            y + 3.0,
+            bar_h - 6.0,
+            left + w + 6.0,
+            y + 15.0,
+            row.ms_median
+        );
+    }
+    s += "</svg>\n";
+    hitex_io::write_atomic(path, s.as_bytes()).map_err(CliError::from)
+}
+
+/// `hitex bench texture`.
+pub fn texture(args: TextureArgs) -> Result<(), CliError> {
+    let base = showcase_scene();
+    let cases: Vec<(String, Scene)> = [("trilinear", Filter::Trilinear), ("bilinear", Filter::Bilinear), ("nearest", Filter::Nearest)]
+        .into_iter()
+        .map(|(n, f)| {
+            let mut s = base.clone();
+            for m in &mut s.materials {
+                m.sampler.filter = f;
+            }
+            (n.to_string(), s)
+        })
+        .collect();
+    if !args.json {
+        println!(
+            "hitex bench texture: showcase scene ({} triangles), {}x{}, {} frames per case orbiting once; median of each",
+            base.triangle_count(),
+            args.size.0,
+            args.size.1,
+            args.frames
+        );
+    }
+    let report = run_cases("texture", &cases, args.frames, args.size, args.backends, args.json)?;
+    if args.json {
+        let text = serde_json::to_string_pretty(&report).map_err(|e| CliError::Internal(e.to_string()))?;
+        println!("{text}");
+    } else {
+        print_table(&report);
+    }
+    if let Some(p) = &args.chart {
+        write_chart(&report, p)?;
+        if !args.json {
+            println!("chart: {}", p.display());
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn median_of_odd_and_even() {
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&mut [4.0, 1.0, 2.0, 3.0]), 2.5);
+    }
+}
