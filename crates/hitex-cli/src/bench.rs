@@ -123,7 +123,14 @@ fn progress(total: u64, quiet: bool) -> ProgressBar {
 
 /// Runs `cases` on the chosen backends: a warm-up frame, then `frames` timed
 /// frames orbiting the camera once; compares the first frame of both backends.
-pub fn run_cases(name: &str, cases: &[(String, Scene)], frames: u32, (w, h): (u32, u32), which: Backends, quiet: bool) -> Result<Report, CliError> {
+pub fn run_cases(
+    name: &str,
+    cases: &[(String, Scene)],
+    frames: u32,
+    (w, h): (u32, u32),
+    which: Backends,
+    quiet: bool,
+) -> Result<Report, CliError> {
     let mut backends: Vec<(&str, AnyRenderer)> = Vec::new();
     if which != Backends::Gpu {
         backends.push(("cpu", AnyRenderer::open(BackendChoice::Cpu)?));
@@ -202,7 +209,12 @@ pub fn print_table(r: &Report) {
         );
     }
     for q in &r.ratios {
-        println!("{:<14} gpu/cpu median ratio {:.2} ({})", q.case, q.gpu_over_cpu, if q.gpu_over_cpu > 1.0 { "CPU faster" } else { "GPU faster" });
+        println!(
+            "{:<14} gpu/cpu median ratio {:.2} ({})",
+            q.case,
+            q.gpu_over_cpu,
+            if q.gpu_over_cpu > 1.0 { "CPU faster" } else { "GPU faster" }
+        );
     }
     for p in &r.parity {
         println!("{:<14} cpu vs gpu first frame: mean |Δ| {:.3}, p99 {} (8-bit steps)", p.case, p.mean_abs, p.p99);
@@ -244,16 +256,17 @@ pub fn write_chart(r: &Report, path: &std::path::Path) -> Result<(), CliError> {
 /// `hitex bench texture`.
 pub fn texture(args: TextureArgs) -> Result<(), CliError> {
     let base = showcase_scene();
-    let cases: Vec<(String, Scene)> = [("trilinear", Filter::Trilinear), ("bilinear", Filter::Bilinear), ("nearest", Filter::Nearest)]
-        .into_iter()
-        .map(|(n, f)| {
-            let mut s = base.clone();
-            for m in &mut s.materials {
-                m.sampler.filter = f;
-            }
-            (n.to_string(), s)
-        })
-        .collect();
+    let cases: Vec<(String, Scene)> =
+        [("trilinear", Filter::Trilinear), ("bilinear", Filter::Bilinear), ("nearest", Filter::Nearest)]
+            .into_iter()
+            .map(|(n, f)| {
+                let mut s = base.clone();
+                for m in &mut s.materials {
+                    m.sampler.filter = f;
+                }
+                (n.to_string(), s)
+            })
+            .collect();
     if !args.json {
         println!(
             "hitex bench texture: showcase scene ({} triangles), {}x{}, {} frames per case orbiting once; median of each",

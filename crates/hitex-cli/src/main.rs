@@ -154,11 +154,14 @@ impl AnyRenderer {
     pub fn open(choice: BackendChoice) -> Result<Self, CliError> {
         match choice {
             BackendChoice::Cpu => Ok(Self::Cpu(CpuRenderer::new())),
-            BackendChoice::Gpu => GpuRenderer::new().map(|g| Self::Gpu(Box::new(g))).map_err(|e| CliError::Internal(e.to_string())),
+            BackendChoice::Gpu => {
+                GpuRenderer::new().map(|g| Self::Gpu(Box::new(g))).map_err(|e| CliError::Internal(e.to_string()))
+            }
             BackendChoice::Auto => match GpuRenderer::new() {
                 Ok(g) => Ok(Self::Gpu(Box::new(g))),
                 Err(e) => {
-                    eprintln!("hitex: {e}; falling back to the CPU backend");
+                    let first = e.to_string().lines().next().unwrap_or_default().to_string();
+                    eprintln!("hitex: GPU backend unavailable ({first}); falling back to the CPU backend");
                     Ok(Self::Cpu(CpuRenderer::new()))
                 }
             },
@@ -172,7 +175,13 @@ impl AnyRenderer {
         }
     }
     /// Renders one frame.
-    pub fn render(&mut self, scene: &PreparedScene, camera: &hitex_core::scene::Camera, w: u32, h: u32) -> Result<Frame, RenderError> {
+    pub fn render(
+        &mut self,
+        scene: &PreparedScene,
+        camera: &hitex_core::scene::Camera,
+        w: u32,
+        h: u32,
+    ) -> Result<Frame, RenderError> {
         match self {
             Self::Cpu(c) => c.render_view(scene, camera, w, h),
             Self::Gpu(g) => g.render_view(scene, camera, w, h),

@@ -31,11 +31,7 @@ pub enum CoreError {
 
 /// Checks that `v` is finite, naming `key` in the error.
 pub fn finite(key: &str, v: f64) -> Result<f64, CoreError> {
-    if v.is_finite() {
-        Ok(v)
-    } else {
-        Err(CoreError::NotFinite { key: key.to_string(), value: v })
-    }
+    if v.is_finite() { Ok(v) } else { Err(CoreError::NotFinite { key: key.to_string(), value: v }) }
 }
 
 /// Checks every component of a 3-vector, naming `key[i]` in the error.

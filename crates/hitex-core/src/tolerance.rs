@@ -40,12 +40,7 @@ macro_rules! near_scalar {
         impl NearCheck for $t {
             fn check_near(&self, other: &$t, eps: f64, a: &str, b: &str) {
                 let d = (*self as f64 - *other as f64).abs();
-                assert!(
-                    d <= eps,
-                    "assert_near failed: {a} = {} vs {b} = {} (|diff| = {d:e} > {eps:e})",
-                    self,
-                    other
-                );
+                assert!(d <= eps, "assert_near failed: {a} = {} vs {b} = {} (|diff| = {d:e} > {eps:e})", self, other);
             }
         }
     };

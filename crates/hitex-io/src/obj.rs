@@ -21,14 +21,13 @@ pub fn load_obj(path: &Path) -> Result<Vec<Mesh>, IoError> {
     }
     let bytes = std::fs::read(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
     let text = String::from_utf8_lossy(&bytes);
-    let opts = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true, ..Default::default() };
+    let opts = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
     let mut reader = std::io::BufReader::new(text.as_bytes());
-    let (models, _materials) = tobj::load_obj_buf(&mut reader, &opts, |_| Err(tobj::LoadError::OpenFileFailed)).map_err(|e| {
-        match locate_error(&text) {
+    let (models, _materials) = tobj::load_obj_buf(&mut reader, &opts, |_| Err(tobj::LoadError::OpenFileFailed))
+        .map_err(|e| match locate_error(&text) {
             Some((line, content)) => fmt(format!("{e} at line {line}: `{content}`")),
             None => fmt(format!("{e}")),
-        }
-    })?;
+        })?;
     let mut meshes = Vec::new();
     for (k, m) in models.iter().enumerate() {
         let g = &m.mesh;
@@ -38,8 +37,10 @@ pub fn load_obj(path: &Path) -> Result<Vec<Mesh>, IoError> {
         let name = if m.name.is_empty() { format!("group {k}") } else { m.name.clone() };
         let positions: Vec<Vec3> = g.positions.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
         let n = positions.len();
-        let normals = (g.normals.len() == 3 * n).then(|| g.normals.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect());
-        let uvs = (g.texcoords.len() == 2 * n).then(|| g.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], 1.0 - c[1])).collect());
+        let normals = (g.normals.len() == 3 * n)
+            .then(|| g.normals.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect());
+        let uvs = (g.texcoords.len() == 2 * n)
+            .then(|| g.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], 1.0 - c[1])).collect());
         let mesh = Mesh::new(&format!("{}:{name}", path.display()), positions, normals, uvs, g.indices.clone())
             .map_err(|e| fmt(format!("group '{name}': {e}")))?;
         meshes.push(mesh);
@@ -58,7 +59,9 @@ fn locate_error(text: &str) -> Option<(usize, String)> {
         let mut it = line.split_whitespace();
         let Some(tag) = it.next() else { continue };
         let rest: Vec<&str> = it.collect();
-        let floats = |lo: usize, hi: usize| rest.len() >= lo && rest.len() <= hi && rest.iter().all(|s| s.parse::<f32>().is_ok());
+        let floats = |lo: usize, hi: usize| {
+            rest.len() >= lo && rest.len() <= hi && rest.iter().all(|s| s.parse::<f32>().is_ok())
+        };
         let ok = match tag {
             "v" => {
                 nv += 1;
@@ -78,10 +81,15 @@ fn locate_error(text: &str) -> Option<(usize, String)> {
                         let parts: Vec<&str> = v.split('/').collect();
                         let idx_ok = |s: Option<&&str>, n: i64, required: bool| match s {
                             None => !required,
-                            Some(s) if s.is_empty() => !required,
-                            Some(s) => s.parse::<i64>().map(|k| (k > 0 && k <= n) || (k < 0 && -k <= n)).unwrap_or(false),
+                            Some(&"") => !required,
+                            Some(s) => {
+                                s.parse::<i64>().map(|k| (k > 0 && k <= n) || (k < 0 && -k <= n)).unwrap_or(false)
+                            }
                         };
-                        parts.len() <= 3 && idx_ok(parts.first(), nv, true) && idx_ok(parts.get(1), nt, false) && idx_ok(parts.get(2), nn, false)
+                        parts.len() <= 3
+                            && idx_ok(parts.first(), nv, true)
+                            && idx_ok(parts.get(1), nt, false)
+                            && idx_ok(parts.get(2), nn, false)
                     })
             }
             _ => true,
@@ -105,7 +113,8 @@ mod tests {
         p
     }
 
-    const QUAD: &str = "o quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\n";
+    const QUAD: &str =
+        "o quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\n";
 
     #[test]
     fn quad_is_triangulated_and_v_flipped() {

@@ -40,7 +40,10 @@ impl AssetLoader for FileLoader {
 pub fn load_scene(path: &Path) -> Result<Scene, IoError> {
     let meta = std::fs::metadata(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
     if meta.len() > MAX_SCENE_FILE_BYTES {
-        return Err(IoError::Format { path: path.to_path_buf(), message: format!("scene file of {} bytes is too large", meta.len()) });
+        return Err(IoError::Format {
+            path: path.to_path_buf(),
+            message: format!("scene file of {} bytes is too large", meta.len()),
+        });
     }
     let text = std::fs::read_to_string(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
     let desc = SceneDesc::from_toml(&text).map_err(|e| IoError::from(e).in_file(path))?;
@@ -61,7 +64,8 @@ mod tests {
     #[test]
     fn scene_with_files_loads_relative_paths() {
         let d = dir();
-        std::fs::write(d.join("tri.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n").unwrap();
+        std::fs::write(d.join("tri.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
+            .unwrap();
         crate::save_png(&d.join("t.png"), 2, 2, &[255; 16]).unwrap();
         let scene = "[camera]\nposition = [0, 0, 3]\ntarget = [0, 0, 0]\n[[texture]]\nname = \"t\"\nfile = \"t.png\"\n\
                      [[material]]\nname = \"m\"\ntexture = \"t\"\n[[object]]\nfile = \"tri.obj\"\n";
@@ -80,7 +84,11 @@ mod tests {
         std::fs::write(d.join("nan.toml"), "[camera]\nposition = [0, 0, nan]\ntarget = [0, 0, 0]\n").unwrap();
         let e = load_scene(&d.join("nan.toml")).unwrap_err().to_string();
         assert!(e.contains("nan.toml") && e.contains("camera.position[2]"), "{e}");
-        std::fs::write(d.join("missing.toml"), "[camera]\nposition = [0, 0, 3]\ntarget = [0, 0, 0]\n[[object]]\nfile = \"gone.obj\"\n").unwrap();
+        std::fs::write(
+            d.join("missing.toml"),
+            "[camera]\nposition = [0, 0, 3]\ntarget = [0, 0, 0]\n[[object]]\nfile = \"gone.obj\"\n",
+        )
+        .unwrap();
         let e = load_scene(&d.join("missing.toml")).unwrap_err().to_string();
         assert!(e.contains("gone.obj"), "{e}");
         let e = load_scene(&d.join("does-not-exist.toml")).unwrap_err().to_string();

@@ -69,7 +69,13 @@ pub fn compare_rgba(a: &[u8], b: &[u8]) -> (ImageDiff, Vec<u8>) {
     let mse = sq as f64 / (3 * n.max(1)) as f64;
     let psnr_db = if mse == 0.0 { f64::INFINITY } else { 10.0 * (255.0f64 * 255.0 / mse).log10() };
     (
-        ImageDiff { mean_abs: sum as f64 / (3 * n.max(1)) as f64, p99, max, frac_over_8: over as f64 / n.max(1) as f64, psnr_db },
+        ImageDiff {
+            mean_abs: sum as f64 / (3 * n.max(1)) as f64,
+            p99,
+            max,
+            frac_over_8: over as f64 / n.max(1) as f64,
+            psnr_db,
+        },
         diff,
     )
 }

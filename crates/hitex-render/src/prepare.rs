@@ -152,7 +152,8 @@ impl PreparedScene {
         let mut material_textures = Vec::new();
         for m in &scene.materials {
             let tex = m.texture.map(|t| scene.textures[t].clone());
-            let (level_count, size) = tex.as_ref().map(|t| (t.level_count() as u32, [t.width(), t.height()])).unwrap_or((1, [1, 1]));
+            let (level_count, size) =
+                tex.as_ref().map(|t| (t.level_count() as u32, [t.width(), t.height()])).unwrap_or((1, [1, 1]));
             materials.push(MaterialUniform {
                 base_color: m.base_color.to_array(),
                 uv_scale: m.uv_scale.to_array(),

@@ -14,7 +14,12 @@ const H: u32 = 136;
 fn cases() -> Vec<(String, Scene)> {
     let base = showcase_scene();
     let mut out = Vec::new();
-    for (name, mode) in [("shaded", RenderMode::Shaded), ("level", RenderMode::Level), ("uv", RenderMode::Uv), ("normal", RenderMode::Normal)] {
+    for (name, mode) in [
+        ("shaded", RenderMode::Shaded),
+        ("level", RenderMode::Level),
+        ("uv", RenderMode::Uv),
+        ("normal", RenderMode::Normal),
+    ] {
         let mut s = base.clone();
         s.mode = mode;
         out.push((format!("showcase-{name}"), s));

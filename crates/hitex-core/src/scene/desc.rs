@@ -103,7 +103,13 @@ pub struct RenderDesc {
 
 impl Default for RenderDesc {
     fn default() -> Self {
-        Self { width: d_width(), height: d_height(), background: d_background(), ambient: d_ambient(), mode: RenderMode::Shaded }
+        Self {
+            width: d_width(),
+            height: d_height(),
+            background: d_background(),
+            ambient: d_ambient(),
+            mode: RenderMode::Shaded,
+        }
     }
 }
 
@@ -347,10 +353,16 @@ pub struct NoFiles;
 impl AssetLoader for NoFiles {
     type Error = CoreError;
     fn load_image(&self, path: &str, _: ColorSpace) -> Result<Image, CoreError> {
-        Err(CoreError::InvalidScene { key: "texture.file".into(), message: format!("'{path}': this scene may not load files") })
+        Err(CoreError::InvalidScene {
+            key: "texture.file".into(),
+            message: format!("'{path}': this scene may not load files"),
+        })
     }
     fn load_meshes(&self, path: &str) -> Result<Vec<Mesh>, CoreError> {
-        Err(CoreError::InvalidScene { key: "object.file".into(), message: format!("'{path}': this scene may not load files") })
+        Err(CoreError::InvalidScene {
+            key: "object.file".into(),
+            message: format!("'{path}': this scene may not load files"),
+        })
     }
 }
 
@@ -369,7 +381,18 @@ impl SceneDesc {
     /// Parses TOML text (syntax, types and unknown keys are checked here; the
     /// message carries line and column).
     pub fn from_toml(text: &str) -> Result<Self, CoreError> {
-        toml::from_str(text).map_err(|e| CoreError::Toml(e.to_string().trim_end().to_string()))
+        toml::from_str(text).map_err(|e| {
+            let msg = e.message().trim_end().replace('\n', " ");
+            match e.span() {
+                Some(span) => {
+                    let before = &text[..span.start.min(text.len())];
+                    let line = before.matches('\n').count() + 1;
+                    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+                    CoreError::Toml(format!("line {line}, column {col}: {msg}"))
+                }
+                None => CoreError::Toml(msg),
+            }
+        })
     }
 
     /// The embedded showcase.
@@ -384,7 +407,11 @@ impl SceneDesc {
     pub fn resolve<L: AssetLoader>(&self, loader: &L) -> Result<Scene, L::Error> {
         let r = &self.render;
         if r.width == 0 || r.height == 0 || r.width > MAX_OUTPUT_SIDE || r.height > MAX_OUTPUT_SIDE {
-            return Err(scene_err("render.width/height".into(), format!("{}x{} is outside 1..={MAX_OUTPUT_SIDE}", r.width, r.height)).into());
+            return Err(scene_err(
+                "render.width/height".into(),
+                format!("{}x{} is outside 1..={MAX_OUTPUT_SIDE}", r.width, r.height),
+            )
+            .into());
         }
         let background = finite3("render.background", r.background)?;
         let ambient = finite3("render.ambient", r.ambient)?;
@@ -403,7 +430,11 @@ impl SceneDesc {
 
         // lights
         if self.lights.len() > MAX_LIGHTS {
-            return Err(scene_err("light".into(), format!("{} lights; at most {MAX_LIGHTS} are supported", self.lights.len())).into());
+            return Err(scene_err(
+                "light".into(),
+                format!("{} lights; at most {MAX_LIGHTS} are supported", self.lights.len()),
+            )
+            .into());
         }
         let mut lights = Vec::new();
         for (i, l) in self.lights.iter().enumerate() {
@@ -445,7 +476,10 @@ impl SceneDesc {
                 (Some(p), None) => {
                     let pat = Pattern::from_name(p).ok_or_else(|| {
                         let names: Vec<_> = Pattern::ALL.iter().map(|p| p.name()).collect();
-                        scene_err(format!("{k}.pattern"), format!("unknown pattern '{p}' (known: {})", names.join(", ")))
+                        scene_err(
+                            format!("{k}.pattern"),
+                            format!("unknown pattern '{p}' (known: {})", names.join(", ")),
+                        )
                     })?;
                     if t.size == 0 || t.size > 8192 {
                         return Err(scene_err(format!("{k}.size"), format!("{} is outside 1..=8192", t.size)).into());
@@ -476,7 +510,11 @@ impl SceneDesc {
             }
             let texture = match &m.texture {
                 None => None,
-                Some(n) => Some(*tex_index.get(n).ok_or_else(|| scene_err(format!("{k}.texture"), format!("no texture named '{n}'")))?),
+                Some(n) => Some(
+                    *tex_index
+                        .get(n)
+                        .ok_or_else(|| scene_err(format!("{k}.texture"), format!("no texture named '{n}'")))?,
+                ),
             };
             materials.push(Material {
                 name: m.name.clone(),
@@ -521,7 +559,9 @@ impl SceneDesc {
             }
             let material = match &o.material {
                 None => 0,
-                Some(n) => *mat_index.get(n).ok_or_else(|| scene_err(format!("{k}.material"), format!("no material named '{n}'")))?,
+                Some(n) => *mat_index
+                    .get(n)
+                    .ok_or_else(|| scene_err(format!("{k}.material"), format!("no material named '{n}'")))?,
             };
             let meshes = match (&o.mesh, &o.file) {
                 (Some(name), None) => {
@@ -531,7 +571,11 @@ impl SceneDesc {
                         "sphere" => Mesh::sphere(64, 32),
                         "torus" => Mesh::torus(0.35, 64, 24),
                         _ => {
-                            return Err(scene_err(format!("{k}.mesh"), format!("unknown mesh '{name}' (known: plane, cube, sphere, torus)")).into());
+                            return Err(scene_err(
+                                format!("{k}.mesh"),
+                                format!("unknown mesh '{name}' (known: plane, cube, sphere, torus)"),
+                            )
+                            .into());
                         }
                     };
                     vec![Arc::new(m)]
@@ -547,7 +591,8 @@ impl SceneDesc {
                 }
                 _ => return Err(scene_err(k, "give exactly one of 'mesh' or 'file'").into()),
             };
-            let rot = Quat::from_euler(EulerRot::XYZ, rotate.x.to_radians(), rotate.y.to_radians(), rotate.z.to_radians());
+            let rot =
+                Quat::from_euler(EulerRot::XYZ, rotate.x.to_radians(), rotate.y.to_radians(), rotate.z.to_radians());
             let transform = Mat4::from_scale_rotation_translation(scale, rot, translate);
             for mesh in meshes {
                 objects.push(Object { mesh, transform, material });
@@ -577,7 +622,6 @@ pub fn showcase_scene() -> Scene {
     }
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -602,7 +646,8 @@ mod tests {
 
     #[test]
     fn minimal_scene_resolves_with_defaults() {
-        let s = SceneDesc::from_toml(&format!("{CAM}[[object]]\nmesh = \"cube\"\n")).unwrap().resolve(&NoFiles).unwrap();
+        let s =
+            SceneDesc::from_toml(&format!("{CAM}[[object]]\nmesh = \"cube\"\n")).unwrap().resolve(&NoFiles).unwrap();
         assert_eq!(s.materials.len(), 1);
         assert_eq!((s.width, s.height), (960, 540));
     }
@@ -641,7 +686,9 @@ mod tests {
 
     #[test]
     fn dangling_references_and_bad_names() {
-        assert!(err(&format!("{CAM}[[object]]\nmesh = \"cube\"\nmaterial = \"gold\"\n")).contains("object[0].material"));
+        assert!(
+            err(&format!("{CAM}[[object]]\nmesh = \"cube\"\nmaterial = \"gold\"\n")).contains("object[0].material")
+        );
         assert!(err(&format!("{CAM}[[material]]\nname = \"m\"\ntexture = \"t\"\n")).contains("material[0].texture"));
         assert!(err(&format!("{CAM}[[object]]\nmesh = \"teapot\"\n")).contains("object[0].mesh"));
         assert!(err(&format!("{CAM}[[texture]]\nname = \"t\"\npattern = \"zebra\"\n")).contains("texture[0].pattern"));

@@ -44,7 +44,7 @@ impl Mesh {
         if positions.len() > MAX_MESH_ELEMENTS || indices.len() / 3 > MAX_MESH_ELEMENTS {
             return Err(err(format!("more than {MAX_MESH_ELEMENTS} vertices or triangles")));
         }
-        if indices.len() % 3 != 0 {
+        if !indices.len().is_multiple_of(3) {
             return Err(err(format!("{} indices is not a multiple of 3", indices.len())));
         }
         let n = positions.len();

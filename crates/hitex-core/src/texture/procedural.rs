@@ -40,7 +40,7 @@ impl Pattern {
         match self {
             Pattern::Checker => Image::from_fn(size, size, ColorSpace::Srgb, |x, y| {
                 let cell = (size / 8).max(1);
-                if ((x / cell) + (y / cell)) % 2 == 0 { [235, 235, 225, 255] } else { [40, 45, 60, 255] }
+                if ((x / cell) + (y / cell)).is_multiple_of(2) { [235, 235, 225, 255] } else { [40, 45, 60, 255] }
             }),
             Pattern::UvGrid => Image::from_fn(size, size, ColorSpace::Srgb, |x, y| {
                 let (u, v) = ((x as f32 + 0.5) / s, (y as f32 + 0.5) / s);

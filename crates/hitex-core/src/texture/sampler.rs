@@ -269,7 +269,8 @@ mod tests {
         let p = lin(vec![[1, 2, 3, 255]; 4], 2, 2);
         for f in [Filter::Nearest, Filter::Bilinear, Filter::Trilinear] {
             let o = SamplerOptions { filter: f, ..Default::default() };
-            let c = sample(&p, &o, Vec2::new(f32::NAN, f32::INFINITY), Jacobian { du_dx: f32::NAN, ..Default::default() });
+            let c =
+                sample(&p, &o, Vec2::new(f32::NAN, f32::INFINITY), Jacobian { du_dx: f32::NAN, ..Default::default() });
             assert!(c.is_finite());
         }
     }

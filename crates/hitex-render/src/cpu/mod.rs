@@ -24,7 +24,13 @@ impl CpuRenderer {
     }
 
     /// Renders `scene` seen by `camera`.
-    pub fn render_view(&self, scene: &PreparedScene, camera: &Camera, width: u32, height: u32) -> Result<Frame, RenderError> {
+    pub fn render_view(
+        &self,
+        scene: &PreparedScene,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+    ) -> Result<Frame, RenderError> {
         check_size(width, height)?;
         let frame = scene.frame_uniform(camera, width, height);
         let program = textured::TexturedProgram::new(scene, &frame);

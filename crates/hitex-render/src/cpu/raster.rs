@@ -74,11 +74,12 @@ struct Setup<const K: usize> {
     /// Edge bias: 0 for top-left edges, −1 otherwise (edge i is opposite vertex i).
     bias: [i64; 3],
     inv_area: f32,
-    /// Screen-linear quantities at vertex 0 and their differences to vertices 1 and 2:
-    /// [q = 1/w, z, varyings·q ...].
-    base: Vec<f32>,
-    d1: Vec<f32>,
-    d2: Vec<f32>,
+    /// Screen-linear q = 1/w at vertex 0 and its differences to vertices 1 and 2.
+    q: [f32; 3],
+    /// Screen-linear depth z/w, same form.
+    z: [f32; 3],
+    /// Screen-linear varyings·q, same form.
+    va: [[f32; K]; 3],
     /// Pixel bounding box (inclusive min, exclusive max).
     bx0: u32,
     by0: u32,
@@ -173,18 +174,15 @@ pub fn rasterize<const K: usize, S: QuadShader<K>>(
     // traversal, one band per task
     let w = width as usize;
     let band_px = w * BAND as usize;
-    target
-        .color
-        .par_chunks_mut(band_px)
-        .zip(target.depth.par_chunks_mut(band_px))
-        .enumerate()
-        .for_each(|(b, (color, depth))| {
+    target.color.par_chunks_mut(band_px).zip(target.depth.par_chunks_mut(band_px)).enumerate().for_each(
+        |(b, (color, depth))| {
             let y_band = b as u32 * BAND;
             let rows = (color.len() / w) as u32;
             for &ti in &bins[b] {
                 raster_band(&tris[ti as usize], shader, color, depth, width, y_band, rows);
             }
-        });
+        },
+    );
 }
 
 fn setup<const K: usize>(
@@ -198,7 +196,9 @@ fn setup<const K: usize>(
     let (wf, hf) = (width as f32, height as f32);
     let mut x = [0i64; 3];
     let mut y = [0i64; 3];
-    let mut vals: [Vec<f32>; 3] = [Vec::new(), Vec::new(), Vec::new()];
+    let mut qs = [0.0f32; 3];
+    let mut zs = [0.0f32; 3];
+    let mut vals = [[0.0f32; K]; 3];
     for (k, v) in fan.iter().enumerate() {
         let q = 1.0 / v.clip.w;
         let (nx, ny, nz) = (v.clip.x * q, v.clip.y * q, v.clip.z * q);
@@ -207,14 +207,12 @@ fn setup<const K: usize>(
         let sy = (0.5 - ny * 0.5) * hf;
         x[k] = (sx * ONE as f32).round() as i64;
         y[k] = (sy * ONE as f32).round() as i64;
-        let mut a = Vec::with_capacity(K + 2);
-        a.push(q);
-        a.push(nz);
-        for j in 0..K {
-            let val = v.bary.x * varyings[idx[0]][j] + v.bary.y * varyings[idx[1]][j] + v.bary.z * varyings[idx[2]][j];
-            a.push(val * q);
+        qs[k] = q;
+        zs[k] = nz;
+        let (a, b, c) = (&varyings[idx[0]], &varyings[idx[1]], &varyings[idx[2]]);
+        for (j, out) in vals[k].iter_mut().enumerate() {
+            *out = (v.bary.x * a[j] + v.bary.y * b[j] + v.bary.z * c[j]) * q;
         }
-        vals[k] = a;
     }
     // orientation: make the signed area positive (clockwise on screen)
     let area = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
@@ -224,6 +222,8 @@ fn setup<const K: usize>(
     if area < 0 {
         x.swap(1, 2);
         y.swap(1, 2);
+        qs.swap(1, 2);
+        zs.swap(1, 2);
         vals.swap(1, 2);
     }
     let area = area.abs();
@@ -247,18 +247,17 @@ fn setup<const K: usize>(
     if px0 >= px1 || py0 >= py1 {
         return None;
     }
-    let base = vals[0].clone();
-    let d1: Vec<f32> = vals[1].iter().zip(&vals[0]).map(|(a, b)| a - b).collect();
-    let d2: Vec<f32> = vals[2].iter().zip(&vals[0]).map(|(a, b)| a - b).collect();
+    let diff = |a: &[f32; K], b: &[f32; K]| -> [f32; K] { std::array::from_fn(|j| a[j] - b[j]) };
+    let va = [vals[0], diff(&vals[1], &vals[0]), diff(&vals[2], &vals[0])];
     Some(Setup {
         material,
         x,
         y,
         bias,
         inv_area: (1.0 / area as f64) as f32,
-        base,
-        d1,
-        d2,
+        q: [qs[0], qs[1] - qs[0], qs[2] - qs[0]],
+        z: [zs[0], zs[1] - zs[0], zs[2] - zs[0]],
+        va,
         bx0: px0 as u32,
         by0: py0 as u32,
         bx1: px1 as u32,
@@ -351,15 +350,13 @@ fn shade_quad<const K: usize, S: QuadShader<K>>(
     // screen-linear barycentrics λ1 = E(edge 2→0)/A, λ2 = E(edge 0→1)/A
     let l1 = e_lane.map(|e| e[1] as f32 * t.inv_area);
     let l2 = e_lane.map(|e| e[2] as f32 * t.inv_area);
-    let lin = |j: usize, lane: usize| t.base[j] + l1[lane] * t.d1[j] + l2[lane] * t.d2[j];
     // early depth test
-    let mut z = [0.0f32; 4];
-    for lane in 0..4 {
-        z[lane] = lin(1, lane);
+    let z: [f32; 4] = std::array::from_fn(|lane| t.z[0] + l1[lane] * t.z[1] + l2[lane] * t.z[2]);
+    for (lane, zl) in z.iter().enumerate() {
         if mask & (1 << lane) != 0 {
             let (lx, ly) = (qx + (lane as u32 & 1), qy + (lane as u32 >> 1) - y_band);
             let i = ly as usize * width as usize + lx as usize;
-            if !(z[lane] < depth[i]) {
+            if zl.partial_cmp(&depth[i]) != Some(std::cmp::Ordering::Less) {
                 mask &= !(1 << lane);
             }
         }
@@ -371,11 +368,12 @@ fn shade_quad<const K: usize, S: QuadShader<K>>(
     let mut v = [[0.0f32; K]; 4];
     let mut w = [0.0f32; 4];
     for lane in 0..4 {
-        let q = lin(0, lane);
+        let q = t.q[0] + l1[lane] * t.q[1] + l2[lane] * t.q[2];
         let inv_q = 1.0 / q;
         w[lane] = inv_q;
-        for j in 0..K {
-            v[lane][j] = lin(j + 2, lane) * inv_q;
+        let (a, b, c) = (&t.va[0], &t.va[1], &t.va[2]);
+        for (j, out) in v[lane].iter_mut().enumerate() {
+            *out = (a[j] + l1[lane] * b[j] + l2[lane] * c[j]) * inv_q;
         }
     }
     let rgba = shader.shade(t.material, &v, w);
@@ -428,7 +426,8 @@ mod tests {
             assert!(c.iter().all(|&n| n <= 1), "double coverage at s = {s}");
             // and the whole interior is covered
             let covered = c.iter().filter(|&&n| n == 1).count();
-            let both = draw(&[[-s, -s, s, -s, s, s, ], [-s, -s, s, s, -s, s]], 16, 16).iter().filter(|&&n| n == 1).count();
+            let both =
+                draw(&[[-s, -s, s, -s, s, s], [-s, -s, s, s, -s, s]], 16, 16).iter().filter(|&&n| n == 1).count();
             assert_eq!(covered, both);
         }
         // a fan of triangles around a centre on a pixel centre: every pixel at most once
@@ -466,7 +465,12 @@ mod tests {
         let mut target = Target::new(8, 8, [0, 0, 0, 0]);
         let pos = vec![Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(-1.0, 1.0, 0.0)];
         // custom matrix: w = 1 + 3·(x+1)/2 via a projective map x → x, w → 1.5x + 2.5
-        let m = Mat4::from_cols(Vec4::new(1.0, 0.0, 0.0, 1.5), Vec4::new(0.0, 1.0, 0.0, 0.0), Vec4::new(0.0, 0.0, 1.0, 0.0), Vec4::new(0.0, 0.0, 0.5, 2.5));
+        let m = Mat4::from_cols(
+            Vec4::new(1.0, 0.0, 0.0, 1.5),
+            Vec4::new(0.0, 1.0, 0.0, 0.0),
+            Vec4::new(0.0, 0.0, 1.0, 0.0),
+            Vec4::new(0.0, 0.0, 0.5, 2.5),
+        );
         let vary = vec![[0.0f32], [1.0], [0.0]];
         let draws = [Draw { first_index: 0, index_count: 3, material: 0 }];
         rasterize(&mut target, m, &pos, &vary, &[0, 1, 2], &draws, &Probe);
@@ -498,7 +502,15 @@ mod tests {
         rasterize(&mut target, Mat4::IDENTITY, &pos, &[[0.0]; 3], &[0, 1, 2], &draws, &Probe);
         // zero-area and NaN triangles
         let pos2 = vec![Vec3::new(0.0, 0.0, 0.5), Vec3::new(0.0, 0.0, 0.5), Vec3::new(f32::NAN, 0.0, 0.5)];
-        rasterize(&mut target, Mat4::IDENTITY, &pos2, &[[0.0]; 3], &[0, 1, 2, 0, 1, 1], &[Draw { first_index: 0, index_count: 6, material: 0 }], &Probe);
+        rasterize(
+            &mut target,
+            Mat4::IDENTITY,
+            &pos2,
+            &[[0.0]; 3],
+            &[0, 1, 2, 0, 1, 1],
+            &[Draw { first_index: 0, index_count: 6, material: 0 }],
+            &Probe,
+        );
         assert!(target.color.iter().all(|c| c[1] == 0));
     }
 }

@@ -5,7 +5,9 @@ use super::raster::QuadShader;
 use crate::prepare::{FrameUniform, MaterialUniform, PreparedScene, Vertex};
 use glam::{Vec2, Vec3, Vec4};
 use hitex_core::scene::MAX_LIGHTS;
-use hitex_core::texture::{Filter, Image, Jacobian, LevelRule, MipPyramid, SamplerOptions, Wrap, level_of_detail, sample};
+use hitex_core::texture::{
+    Filter, Image, Jacobian, LevelRule, MipPyramid, SamplerOptions, Wrap, level_of_detail, sample,
+};
 
 /// Varyings per vertex: world position (3), world normal (3), uv (2).
 pub const VARYINGS: usize = 8;
@@ -133,7 +135,10 @@ impl QuadShader<VARYINGS> for TexturedProgram<'_> {
         let (du_x, du_y, dq_x, dq_y) = (dpdx(big_u), dpdy(big_u), dpdx(q), dpdy(q));
         let mut out = [[0u8; 4]; 4];
         for lane in 0..4 {
-            let jac = Jacobian::new((du_x[lane] - uv[lane] * dq_x[lane]) / q[lane], (du_y[lane] - uv[lane] * dq_y[lane]) / q[lane]);
+            let jac = Jacobian::new(
+                (du_x[lane] - uv[lane] * dq_x[lane]) / q[lane],
+                (du_y[lane] - uv[lane] * dq_y[lane]) / q[lane],
+            );
             // two-sided normal
             let cam = Vec3::new(f.camera[0], f.camera[1], f.camera[2]);
             let view = (cam - pos[lane]).normalize_or_zero();

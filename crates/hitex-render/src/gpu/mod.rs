@@ -77,7 +77,11 @@ impl GpuRenderer {
             entries: &[wgpu::BindGroupLayoutEntry {
                 binding: 0,
                 visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
                 count: None,
             }],
         });
@@ -87,7 +91,11 @@ impl GpuRenderer {
                 wgpu::BindGroupLayoutEntry {
                     binding: 0,
                     visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
                     count: None,
                 },
                 wgpu::BindGroupLayoutEntry {
@@ -157,7 +165,16 @@ impl GpuRenderer {
             layout: &frame_layout,
             entries: &[wgpu::BindGroupEntry { binding: 0, resource: frame_buffer.as_entire_binding() }],
         });
-        Ok(Self { ctx, pipeline, frame_layout, material_layout, frame_buffer, frame_group, uploaded: None, target: None })
+        Ok(Self {
+            ctx,
+            pipeline,
+            frame_layout,
+            material_layout,
+            frame_buffer,
+            frame_group,
+            uploaded: None,
+            target: None,
+        })
     }
 
     /// Description of the adapter in use.
@@ -187,9 +204,18 @@ impl GpuRenderer {
         });
         for (l, img) in pyr.levels().iter().enumerate() {
             self.ctx.queue.write_texture(
-                wgpu::TexelCopyTextureInfo { texture: &tex, mip_level: l as u32, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+                wgpu::TexelCopyTextureInfo {
+                    texture: &tex,
+                    mip_level: l as u32,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
                 img.bytes(),
-                wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(4 * img.width()), rows_per_image: Some(img.height()) },
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(4 * img.width()),
+                    rows_per_image: Some(img.height()),
+                },
                 wgpu::Extent3d { width: img.width(), height: img.height(), depth_or_array_layers: 1 },
             );
         }
@@ -286,11 +312,19 @@ impl GpuRenderer {
     }
 
     /// Renders `scene` seen by `camera` and reads the image back.
-    pub fn render_view(&mut self, scene: &PreparedScene, camera: &Camera, width: u32, height: u32) -> Result<Frame, RenderError> {
+    pub fn render_view(
+        &mut self,
+        scene: &PreparedScene,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+    ) -> Result<Frame, RenderError> {
         check_size(width, height)?;
         let max = self.ctx.device.limits().max_texture_dimension_2d;
         if width > max || height > max {
-            return Err(RenderError::Invalid(format!("{width}x{height} exceeds the adapter's limit of {max} pixels per side")));
+            return Err(RenderError::Invalid(format!(
+                "{width}x{height} exceeds the adapter's limit of {max} pixels per side"
+            )));
         }
         self.upload(scene);
         self.ensure_target(width, height);
@@ -343,10 +377,19 @@ impl GpuRenderer {
             }
         }
         enc.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo { texture: &tg.color, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+            wgpu::TexelCopyTextureInfo {
+                texture: &tg.color,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
             wgpu::TexelCopyBufferInfo {
                 buffer: &tg.readback,
-                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(tg.padded_row), rows_per_image: Some(height) },
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(tg.padded_row),
+                    rows_per_image: Some(height),
+                },
             },
             wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
         );
@@ -362,7 +405,13 @@ impl GpuRenderer {
     }
 }
 
-fn read_back(device: &wgpu::Device, buf: &wgpu::Buffer, width: u32, height: u32, padded_row: u32) -> Result<Vec<u8>, GpuError> {
+fn read_back(
+    device: &wgpu::Device,
+    buf: &wgpu::Buffer,
+    width: u32,
+    height: u32,
+    padded_row: u32,
+) -> Result<Vec<u8>, GpuError> {
     let slice = buf.slice(..);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {

@@ -1,0 +1,176 @@
+//! The `hitex` binary as a user runs it: outputs, exit codes and error lines.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn hitex(args: &[&str]) -> Output {
+    match Command::new(env!("CARGO_BIN_EXE_hitex")).args(args).output() {
+        Ok(o) => o,
+        Err(e) => panic!("cannot run hitex: {e}"),
+    }
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("hitex-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// The error lines hitex printed (the GL driver may add noise lines of its own).
+fn error_lines(o: &Output) -> Vec<String> {
+    String::from_utf8_lossy(&o.stderr).lines().filter(|l| l.starts_with("hitex:")).map(str::to_string).collect()
+}
+
+/// Runs `hitex render` on a scene text and expects exit code 2 with one error
+/// line containing every needle.
+fn bad_scene(name: &str, text: &str, needles: &[&str]) {
+    let d = tmp(name);
+    let scene = d.join(format!("{name}.toml"));
+    std::fs::write(&scene, text).unwrap();
+    let out = d.join("out.png");
+    let o =
+        hitex(&["render", scene.to_str().unwrap(), "-o", out.to_str().unwrap(), "--backend", "cpu", "--size", "32x32"]);
+    let lines = error_lines(&o);
+    assert_eq!(o.status.code(), Some(2), "{name}: {lines:?}");
+    assert_eq!(lines.len(), 1, "{name}: expected one error line, got {lines:?}");
+    assert!(
+        lines[0].contains(&format!("{name}.toml"))
+            || needles.iter().any(|n| n.ends_with(".obj") || n.ends_with(".png")),
+        "{name}: {lines:?}"
+    );
+    for n in needles {
+        assert!(lines[0].contains(n), "{name}: '{n}' missing in {lines:?}");
+    }
+    assert!(!out.exists(), "{name}: an output was written");
+}
+
+const CAM: &str = "[camera]\nposition = [0, 1, 4]\ntarget = [0, 0, 0]\n";
+
+#[test]
+fn bad_input_gives_one_clear_line_and_exit_2() {
+    bad_scene("unknown-key", &format!("{CAM}zoom = 2\n"), &["zoom", "line 4"]);
+    bad_scene("wrong-type", "[camera]\nposition = \"up there\"\ntarget = [0, 0, 0]\n", &["line 2"]);
+    bad_scene("nan", "[camera]\nposition = [0, nan, 4]\ntarget = [0, 0, 0]\n", &["camera.position[1]", "not finite"]);
+    bad_scene(
+        "infinite",
+        &format!("{CAM}[[object]]\nmesh = \"cube\"\ntranslate = [inf, 0, 0]\n"),
+        &["object[0].translate[0]"],
+    );
+    bad_scene("same-point", "[camera]\nposition = [1, 2, 3]\ntarget = [1, 2, 3]\n", &["degenerate camera", "target"]);
+    bad_scene("fov-zero", &format!("{CAM}fov_y = 0\n"), &["fov_y"]);
+    bad_scene("fov-180", &format!("{CAM}fov_y = 180\n"), &["fov_y"]);
+    bad_scene("syntax", "[camera\nposition = [0, 1, 4]\n", &["line 1"]);
+    bad_scene(
+        "no-material",
+        &format!("{CAM}[[object]]\nmesh = \"cube\"\nmaterial = \"gold\"\n"),
+        &["object[0].material", "gold"],
+    );
+
+    // referenced files: missing, empty mesh, corrupt image
+    let d = tmp("files");
+    std::fs::write(d.join("empty.obj"), "# nothing here\nv 0 0 0\n").unwrap();
+    std::fs::write(d.join("corrupt.png"), b"\x89PNG\r\n\x1a\nnot really").unwrap();
+    for (name, body, needle) in [
+        ("missing-mesh", "[[object]]\nfile = \"gone.obj\"\n", "gone.obj"),
+        ("empty-mesh", "[[object]]\nfile = \"empty.obj\"\n", "empty.obj"),
+        ("corrupt-image", "[[texture]]\nname = \"t\"\nfile = \"corrupt.png\"\n", "corrupt.png"),
+    ] {
+        let scene = d.join(format!("{name}.toml"));
+        std::fs::write(&scene, format!("{CAM}{body}")).unwrap();
+        let o =
+            hitex(&["render", scene.to_str().unwrap(), "-o", d.join("x.png").to_str().unwrap(), "--backend", "cpu"]);
+        let lines = error_lines(&o);
+        assert_eq!(o.status.code(), Some(2), "{name}: {lines:?}");
+        assert_eq!(lines.len(), 1, "{name}: {lines:?}");
+        assert!(lines[0].contains(needle), "{name}: {lines:?}");
+    }
+
+    // a missing scene file
+    let o = hitex(&["render", "/no/such/scene.toml", "-o", "x.png"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(error_lines(&o)[0].contains("/no/such/scene.toml"));
+    // a malformed size
+    let o = hitex(&["demo", "--size", "0x10"]);
+    assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
+fn render_writes_a_png() {
+    let d = tmp("render");
+    let scene = d.join("s.toml");
+    let o = hitex(&["demo", "--print-scene"]);
+    assert!(o.status.success());
+    std::fs::write(&scene, &o.stdout).unwrap();
+    let out = d.join("s.png");
+    let o = hitex(&[
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--backend",
+        "cpu",
+        "--size",
+        "80x45",
+        "--mode",
+        "level",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let img = hitex_png_size(&out);
+    assert_eq!(img, (80, 45));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("wrote"));
+}
+
+fn hitex_png_size(p: &Path) -> (u32, u32) {
+    let bytes = std::fs::read(p).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG");
+    let w = u32::from_be_bytes([bytes[16], bytes[17], bytes[18], bytes[19]]);
+    let h = u32::from_be_bytes([bytes[20], bytes[21], bytes[22], bytes[23]]);
+    (w, h)
+}
+
+#[test]
+fn demo_renders_the_showcase() {
+    let d = tmp("demo");
+    let o = hitex(&["demo", "--out", d.to_str().unwrap(), "--backend", "cpu", "--size", "96x54"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["showcase.png", "showcase-levels.png", "filters.png", "level-rules.png", "uv-normal.png"] {
+        assert!(d.join(f).exists(), "{f} missing");
+    }
+    assert_eq!(hitex_png_size(&d.join("showcase.png")), (96, 54));
+    assert!(String::from_utf8_lossy(&o.stdout).contains(" ms"));
+}
+
+#[test]
+fn bench_texture_json_has_the_shared_shape() {
+    let require = std::env::var("HITEX_REQUIRE_GPU").is_ok_and(|v| v == "1");
+    let o = hitex(&["bench", "texture", "--json", "--frames", "2", "--size", "64x48"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["bench"], "texture");
+    let rows = v["rows"].as_array().unwrap();
+    for r in rows {
+        for k in ["case", "backend", "adapter", "width", "height", "frames", "ms_median", "fps_median"] {
+            assert!(!r[k].is_null(), "row lacks {k}: {r}");
+        }
+        assert!(r["ms_median"].as_f64().unwrap() > 0.0);
+    }
+    let cpu = rows.iter().filter(|r| r["backend"] == "cpu").count();
+    let gpu = rows.iter().filter(|r| r["backend"] == "gpu").count();
+    assert_eq!(cpu, 3);
+    if require {
+        assert_eq!(gpu, 3, "HITEX_REQUIRE_GPU=1 but the GPU backend did not run");
+        assert_eq!(v["ratios"].as_array().unwrap().len(), 3);
+    } else if gpu == 0 {
+        eprintln!("SKIPPED GPU part of bench_texture_json_has_the_shared_shape: no adapter");
+    }
+}
+
+#[test]
+fn info_lists_adapters() {
+    let o = hitex(&["info"]);
+    assert!(o.status.success());
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(s.contains("cpu backend"));
+    assert!(s.contains("adapter") || s.contains("no GPU adapter"));
+}
