@@ -170,7 +170,7 @@ impl AnyRenderer {
     /// Backend description.
     pub fn name(&self) -> String {
         match self {
-            Self::Cpu(_) => format!("cpu ({} threads)", rayon_threads()),
+            Self::Cpu(c) => hitex_render::Renderer::name(c),
             Self::Gpu(g) => format!("gpu: {}", g.adapter()),
         }
     }

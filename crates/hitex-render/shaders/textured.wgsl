@@ -254,7 +254,7 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         }
         let ndl = max(dot(n, to_light), 0.0);
         diffuse = diffuse + radiance * ndl;
-        if ndl > 0.0 {
+        if ndl > 0.0 && material.specular > 0.0 {
             let h = normalize(to_light + view);
             spec = spec + radiance * (material.specular * pow(max(dot(n, h), 0.0), material.shininess));
         }

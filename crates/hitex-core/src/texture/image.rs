@@ -102,6 +102,17 @@ impl Image {
     }
 }
 
+static LINEAR_LUT: LazyLock<[f32; 256]> = LazyLock::new(|| std::array::from_fn(|i| i as f32 / 255.0));
+
+/// The table that decodes an 8-bit colour channel of `cs` to linear light.
+#[inline]
+pub fn decode_table(cs: ColorSpace) -> &'static [f32; 256] {
+    match cs {
+        ColorSpace::Srgb => &SRGB_LUT,
+        ColorSpace::Linear => &LINEAR_LUT,
+    }
+}
+
 /// Decodes one texel to linear floats.
 #[inline]
 pub fn decode(t: [u8; 4], cs: ColorSpace) -> [f32; 4] {
@@ -139,11 +150,50 @@ pub fn linear_to_srgb(l: f32) -> f32 {
     if l <= 0.0031308 { l * 12.92 } else { 1.055 * l.powf(1.0 / 2.4) - 0.055 }
 }
 
-/// Linear light to an 8-bit sRGB code (round to nearest).
+/// Linear light to an 8-bit sRGB code: `round(255 · linear_to_srgb(l))`,
+/// computed without `powf` (a 4096-entry guess refined against the exact
+/// decision thresholds, so the result is the correctly rounded code).
 #[inline]
 pub fn linear_to_srgb_u8(l: f32) -> u8 {
+    let t = &*SRGB_ENCODE;
+    let l = if l.is_nan() { 0.0 } else { l.clamp(0.0, 1.0) };
+    let mut c = t.guess[(l * (ENCODE_GUESSES - 1) as f32) as usize] as usize;
+    while c < 255 && l >= t.threshold[c + 1] {
+        c += 1;
+    }
+    while c > 0 && l < t.threshold[c] {
+        c -= 1;
+    }
+    c as u8
+}
+
+/// Reference encoder with `powf`, for tests and tables.
+pub fn linear_to_srgb_u8_exact(l: f32) -> u8 {
     (linear_to_srgb(l) * 255.0 + 0.5) as u8
 }
+
+const ENCODE_GUESSES: usize = 4096;
+
+struct SrgbEncode {
+    /// `threshold[c]`: smallest linear value that encodes to code `c` or more.
+    threshold: [f32; 256],
+    guess: Vec<u8>,
+}
+
+static SRGB_ENCODE: LazyLock<SrgbEncode> = LazyLock::new(|| {
+    let mut threshold = [0.0f32; 256];
+    for (c, th) in threshold.iter_mut().enumerate().skip(1) {
+        // bisect the exact encoder's decision point between c − 1 and c
+        let (mut lo, mut hi) = (0.0f32, 1.0f32);
+        for _ in 0..64 {
+            let mid = 0.5 * (lo + hi);
+            if linear_to_srgb_u8_exact(mid) as usize >= c { hi = mid } else { lo = mid }
+        }
+        *th = hi;
+    }
+    let guess = (0..ENCODE_GUESSES).map(|i| linear_to_srgb_u8_exact(i as f32 / (ENCODE_GUESSES - 1) as f32)).collect();
+    SrgbEncode { threshold, guess }
+});
 
 static SRGB_LUT: LazyLock<[f32; 256]> = LazyLock::new(|| {
     let mut t = [0.0f32; 256];
@@ -175,6 +225,21 @@ mod tests {
         assert!(Image::new(2, 2, ColorSpace::Srgb, vec![[0; 4]; 3]).is_err());
         assert!(Image::new(0, 2, ColorSpace::Srgb, vec![]).is_err());
         assert!(Image::filled(MAX_IMAGE_SIDE + 1, 1, ColorSpace::Srgb, [0; 4]).is_err());
+    }
+
+    #[test]
+    fn fast_encoder_equals_the_powf_encoder() {
+        let mut l = 0.0f32;
+        while l <= 1.0 {
+            assert_eq!(linear_to_srgb_u8(l), linear_to_srgb_u8_exact(l), "at {l}");
+            l += 1.0 / 65536.0;
+        }
+        for c in 0..=255u8 {
+            let x = srgb_u8_to_linear(c);
+            for v in [x, f32::from_bits(x.to_bits().wrapping_sub(1)), f32::from_bits(x.to_bits() + 1)] {
+                assert_eq!(linear_to_srgb_u8(v), linear_to_srgb_u8_exact(v), "at {v}");
+            }
+        }
     }
 
     #[test]

@@ -112,7 +112,7 @@ pub fn sample(pyr: &MipPyramid, opts: &SamplerOptions, uv: Vec2, jac: Jacobian) 
             let lambda = level_of_detail(opts.level_rule, jac, pyr.width(), pyr.height()) + opts.lod_bias;
             let max_level = (pyr.level_count() - 1) as f32;
             let lambda = if lambda.is_nan() { 0.0 } else { lambda.clamp(0.0, max_level) };
-            let l0 = lambda.floor();
+            let l0 = floor(lambda);
             let gamma = lambda - l0;
             let l0 = l0 as usize;
             // bilinear at L and L+1, linear blend
@@ -132,8 +132,8 @@ pub fn sample(pyr: &MipPyramid, opts: &SamplerOptions, uv: Vec2, jac: Jacobian) 
 #[inline]
 pub fn reduce(t: f32, wrap: Wrap) -> f32 {
     match wrap {
-        Wrap::Repeat => t - t.floor(),
-        Wrap::Mirror => t - 2.0 * (t * 0.5).floor(),
+        Wrap::Repeat => t - floor(t),
+        Wrap::Mirror => t - 2.0 * floor(t * 0.5),
         Wrap::Clamp => t.clamp(-1.0, 2.0),
     }
 }
@@ -141,6 +141,10 @@ pub fn reduce(t: f32, wrap: Wrap) -> f32 {
 /// Texel index `i` on an axis of `n` texels under `wrap`.
 #[inline]
 pub fn wrap_index(i: i32, n: i32, wrap: Wrap) -> i32 {
+    // inside: every mode agrees (the common case, without a division)
+    if i >= 0 && i < n {
+        return i;
+    }
     match wrap {
         Wrap::Repeat => i.rem_euclid(n),
         Wrap::Clamp => i.clamp(0, n - 1),
@@ -151,10 +155,21 @@ pub fn wrap_index(i: i32, n: i32, wrap: Wrap) -> i32 {
     }
 }
 
+/// `floor`, inlined where the platform's `floorf` is a library call.
+/// Floats of magnitude ≥ 2²³ are integers already; NaN stays NaN.
+#[inline(always)]
+pub fn floor(t: f32) -> f32 {
+    if !(t.abs() < 8_388_608.0) {
+        return t;
+    }
+    let i = t as i32 as f32;
+    if i > t { i - 1.0 } else { i }
+}
+
 fn nearest(img: &Image, wrap: Wrap, uv: Vec2) -> Vec4 {
     let (w, h) = (img.width() as i32, img.height() as i32);
-    let x = wrap_index((uv.x * w as f32).floor() as i32, w, wrap);
-    let y = wrap_index((uv.y * h as f32).floor() as i32, h, wrap);
+    let x = wrap_index(floor(uv.x * w as f32) as i32, w, wrap);
+    let y = wrap_index(floor(uv.y * h as f32) as i32, h, wrap);
     Vec4::from_array(img.texel_linear(x as u32, y as u32))
 }
 
@@ -164,17 +179,24 @@ pub fn bilinear(img: &Image, wrap: Wrap, uv: Vec2) -> Vec4 {
     let (w, h) = (img.width() as i32, img.height() as i32);
     let x = uv.x * w as f32 - 0.5;
     let y = uv.y * h as f32 - 0.5;
-    let (xf, yf) = (x.floor(), y.floor());
+    let (xf, yf) = (floor(x), floor(y));
     let (alpha, beta) = (x - xf, y - yf);
     let (x0, y0) = (xf as i32, yf as i32);
     let xa = wrap_index(x0, w, wrap) as u32;
     let xb = wrap_index(x0 + 1, w, wrap) as u32;
     let ya = wrap_index(y0, h, wrap) as u32;
     let yb = wrap_index(y0 + 1, h, wrap) as u32;
-    let t00 = Vec4::from_array(img.texel_linear(xa, ya));
-    let t10 = Vec4::from_array(img.texel_linear(xb, ya));
-    let t01 = Vec4::from_array(img.texel_linear(xa, yb));
-    let t11 = Vec4::from_array(img.texel_linear(xb, yb));
+    let texels = img.texels();
+    let (ra, rb) = (ya as usize * w as usize, yb as usize * w as usize);
+    let lut = super::image::decode_table(img.color_space());
+    let fetch = |i: usize| {
+        let t = texels[i];
+        Vec4::new(lut[t[0] as usize], lut[t[1] as usize], lut[t[2] as usize], t[3] as f32 * (1.0 / 255.0))
+    };
+    let t00 = fetch(ra + xa as usize);
+    let t10 = fetch(ra + xb as usize);
+    let t01 = fetch(rb + xa as usize);
+    let t11 = fetch(rb + xb as usize);
     let top = t00 + (t10 - t00) * alpha;
     let bottom = t01 + (t11 - t01) * alpha;
     top + (bottom - top) * beta
@@ -255,6 +277,16 @@ mod tests {
         assert_near!(sample(&p, &o, Vec2::new(0.49, 0.5), Jacobian::default()).x, 10.0 / 255.0, 1e-7);
         assert_near!(sample(&p, &o, Vec2::new(0.51, 0.5), Jacobian::default()).x, 200.0 / 255.0, 1e-7);
         assert_near!(sample(&p, &o, Vec2::new(-0.49, 0.5), Jacobian::default()).x, 200.0 / 255.0, 1e-7);
+    }
+
+    #[test]
+    fn fast_floor_equals_floor() {
+        for t in
+            [0.0f32, -0.0, 0.5, -0.5, 1.0, -1.0, 2.999, -2.999, 1e7, -1e7, 8388607.5, -8388607.5, 3e9, -3e9, f32::MAX]
+        {
+            assert_eq!(floor(t), t.floor(), "{t}");
+        }
+        assert!(floor(f32::NAN).is_nan());
     }
 
     #[test]

@@ -183,7 +183,7 @@ impl QuadShader<VARYINGS> for TexturedProgram<'_> {
                         };
                         let ndl = n.dot(to_light).max(0.0);
                         diffuse += radiance * ndl;
-                        if ndl > 0.0 {
+                        if ndl > 0.0 && m.specular > 0.0 {
                             let h = (to_light + view).normalize_or_zero();
                             spec += radiance * (m.specular * n.dot(h).max(0.0).powf(m.shininess));
                         }
