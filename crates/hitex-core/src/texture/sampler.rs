@@ -159,7 +159,7 @@ pub fn wrap_index(i: i32, n: i32, wrap: Wrap) -> i32 {
 /// Floats of magnitude ≥ 2²³ are integers already; NaN stays NaN.
 #[inline(always)]
 pub fn floor(t: f32) -> f32 {
-    if !(t.abs() < 8_388_608.0) {
+    if t.is_nan() || t.abs() >= 8_388_608.0 {
         return t;
     }
     let i = t as i32 as f32;
