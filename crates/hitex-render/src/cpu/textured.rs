@@ -3,7 +3,7 @@
 
 use super::raster::QuadShader;
 use crate::prepare::{FrameUniform, MaterialUniform, PreparedScene, Vertex};
-use glam::{Vec2, Vec3, Vec4};
+use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
 use hitex_core::scene::MAX_LIGHTS;
 use hitex_core::texture::{
     Filter, Image, Jacobian, LevelRule, MipPyramid, SamplerOptions, Wrap, level_of_detail, sample,
@@ -118,79 +118,167 @@ fn raw(c: Vec3) -> [u8; 4] {
     [e(c.x), e(c.y), e(c.z), 255]
 }
 
+/// Four lanes of a scalar: one value per pixel of the quad (SSE on x86-64).
+type Lanes = Vec4;
+
+/// Fine derivative along x of four lanes (lanes 0 1 / 2 3).
+#[inline(always)]
+fn ddx(a: Lanes) -> Lanes {
+    a.yyww() - a.xxzz()
+}
+
+/// Fine derivative along y of four lanes.
+#[inline(always)]
+fn ddy(a: Lanes) -> Lanes {
+    a.zwzw() - a.xyxy()
+}
+
+/// Three lanes-vectors: a 3-vector per pixel, stored component-wise.
+#[derive(Clone, Copy)]
+struct V3 {
+    x: Lanes,
+    y: Lanes,
+    z: Lanes,
+}
+
+impl V3 {
+    #[inline(always)]
+    fn splat(v: Vec3) -> Self {
+        Self { x: Lanes::splat(v.x), y: Lanes::splat(v.y), z: Lanes::splat(v.z) }
+    }
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        Self { x: self.x - o.x, y: self.y - o.y, z: self.z - o.z }
+    }
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        Self { x: self.x + o.x, y: self.y + o.y, z: self.z + o.z }
+    }
+    #[inline(always)]
+    fn scale(self, s: Lanes) -> Self {
+        Self { x: self.x * s, y: self.y * s, z: self.z * s }
+    }
+    #[inline(always)]
+    fn dot(self, o: Self) -> Lanes {
+        self.x * o.x + self.y * o.y + self.z * o.z
+    }
+    /// `v / |v|`, or zero where `|v| = 0` (glam's `normalize_or_zero`).
+    #[inline(always)]
+    fn normalize_or_zero(self) -> Self {
+        let len2 = self.dot(self);
+        let rcp = Lanes::ONE / len2.sqrt();
+        let ok = rcp.is_finite_mask() & len2.cmpgt(Lanes::ZERO);
+        self.scale(Lanes::select(ok, rcp, Lanes::ZERO))
+    }
+    #[inline(always)]
+    fn lane(self, i: usize) -> Vec3 {
+        Vec3::new(self.x[i], self.y[i], self.z[i])
+    }
+}
+
 impl QuadShader<VARYINGS> for TexturedProgram<'_> {
     fn shade(&self, material: usize, v: &[[f32; VARYINGS]; 4], w: [f32; 4]) -> [[u8; 4]; 4] {
         let (m, opts, tex) = &self.materials[material];
         let f = self.frame;
-        // inputs
-        let pos = v.map(|a| Vec3::new(a[0], a[1], a[2]));
-        let nrm = v.map(|a| Vec3::new(a[3], a[4], a[5]));
-        let scale = Vec2::from_array(m.uv_scale);
-        let uv = v.map(|a| Vec2::new(a[6], a[7]) * scale);
+        // inputs, one lane per pixel
+        let col = |j: usize| Lanes::new(v[0][j], v[1][j], v[2][j], v[3][j]);
+        let pos = V3 { x: col(0), y: col(1), z: col(2) };
+        let nrm = V3 { x: col(3), y: col(4), z: col(5) };
+        let u = col(6) * m.uv_scale[0];
+        let vv = col(7) * m.uv_scale[1];
         // analytic screen-to-texture Jacobian, eq. (1): uv = U / q with U = uv·q
         // and q = 1/w both linear in screen space, so their quad differences are
         // exact and ∂uv/∂x = (∂U/∂x − uv ∂q/∂x) / q
-        let q = w.map(|w| 1.0 / w);
-        let big_u = [uv[0] * q[0], uv[1] * q[1], uv[2] * q[2], uv[3] * q[3]];
-        let (du_x, du_y, dq_x, dq_y) = (dpdx(big_u), dpdy(big_u), dpdx(q), dpdy(q));
+        let q = Lanes::ONE / Lanes::from_array(w);
+        let (bu, bv) = (u * q, vv * q);
+        let (dq_x, dq_y) = (ddx(q), ddy(q));
+        let du_dx = (ddx(bu) - u * dq_x) / q;
+        let dv_dx = (ddx(bv) - vv * dq_x) / q;
+        let du_dy = (ddy(bu) - u * dq_y) / q;
+        let dv_dy = (ddy(bv) - vv * dq_y) / q;
+        let jac = |i: usize| Jacobian { du_dx: du_dx[i], dv_dx: dv_dx[i], du_dy: du_dy[i], dv_dy: dv_dy[i] };
+        let uv = |i: usize| Vec2::new(u[i], vv[i]);
+        // two-sided normal
+        let cam = V3::splat(Vec3::new(f.camera[0], f.camera[1], f.camera[2]));
+        let view = cam.sub(pos).normalize_or_zero();
+        let n = nrm.normalize_or_zero();
+        let back = n.dot(view).cmplt(Lanes::ZERO);
+        let sign = Lanes::select(back, Lanes::splat(-1.0), Lanes::ONE);
+        let n = n.scale(sign);
         let mut out = [[0u8; 4]; 4];
-        for lane in 0..4 {
-            let jac = Jacobian::new(
-                (du_x[lane] - uv[lane] * dq_x[lane]) / q[lane],
-                (du_y[lane] - uv[lane] * dq_y[lane]) / q[lane],
-            );
-            // two-sided normal
-            let cam = Vec3::new(f.camera[0], f.camera[1], f.camera[2]);
-            let view = (cam - pos[lane]).normalize_or_zero();
-            let mut n = nrm[lane].normalize_or_zero();
-            if n.dot(view) < 0.0 {
-                n = -n;
+        match f.params[0] {
+            // uv
+            1 => {
+                for (i, o) in out.iter_mut().enumerate() {
+                    let t = uv(i);
+                    *o = raw(Vec3::new(t.x - t.x.floor(), t.y - t.y.floor(), 0.0));
+                }
             }
-            out[lane] = match f.params[0] {
-                // uv
-                1 => raw(Vec3::new(uv[lane].x - uv[lane].x.floor(), uv[lane].y - uv[lane].y.floor(), 0.0)),
-                // level
-                2 => {
+            // level
+            2 => {
+                for (i, o) in out.iter_mut().enumerate() {
                     let lambda = match texture_level0(*tex) {
                         Some(img) if m.has_texture == 1 => {
-                            level_of_detail(opts.level_rule, jac, img.width(), img.height()) + opts.lod_bias
+                            level_of_detail(opts.level_rule, jac(i), img.width(), img.height()) + opts.lod_bias
                         }
                         _ => f32::NEG_INFINITY,
                     };
-                    raw(level_color(lambda))
+                    *o = raw(level_color(lambda));
                 }
-                // normal
-                3 => raw(n * 0.5 + Vec3::splat(0.5)),
-                // shaded
-                _ => {
-                    let texel = match tex {
-                        Some(t) if m.has_texture == 1 => sample(t, opts, uv[lane], jac),
-                        _ => Vec4::ONE,
-                    };
-                    let albedo = Vec4::from_array(m.base_color) * texel;
-                    let mut diffuse = Vec3::new(f.ambient[0], f.ambient[1], f.ambient[2]);
-                    let mut spec = Vec3::ZERO;
-                    let count = (f.params[1] as usize).min(MAX_LIGHTS);
-                    for l in &f.lights[..count] {
-                        let lv = Vec3::new(l.vector[0], l.vector[1], l.vector[2]);
-                        let mut radiance = Vec3::new(l.radiance[0], l.radiance[1], l.radiance[2]);
-                        let to_light = if l.vector[3] == 0.0 {
-                            -lv
-                        } else {
-                            let d = lv - pos[lane];
-                            radiance /= d.dot(d).max(1e-8);
-                            d.normalize_or_zero()
-                        };
-                        let ndl = n.dot(to_light).max(0.0);
-                        diffuse += radiance * ndl;
-                        if ndl > 0.0 && m.specular > 0.0 {
-                            let h = (to_light + view).normalize_or_zero();
-                            spec += radiance * (m.specular * n.dot(h).max(0.0).powf(m.shininess));
-                        }
+            }
+            // normal
+            3 => {
+                for (i, o) in out.iter_mut().enumerate() {
+                    *o = raw(n.lane(i) * 0.5 + Vec3::splat(0.5));
+                }
+            }
+            // shaded
+            _ => {
+                // albedo = base colour × texel
+                let mut albedo = V3::splat(Vec4::from_array(m.base_color).truncate());
+                if let Some(t) = tex.filter(|_| m.has_texture == 1) {
+                    let mut c = [Vec4::ONE; 4];
+                    for (i, ci) in c.iter_mut().enumerate() {
+                        *ci = sample(t, opts, uv(i), jac(i));
                     }
-                    encode(albedo.truncate() * diffuse + spec)
+                    albedo.x *= Lanes::new(c[0].x, c[1].x, c[2].x, c[3].x);
+                    albedo.y *= Lanes::new(c[0].y, c[1].y, c[2].y, c[3].y);
+                    albedo.z *= Lanes::new(c[0].z, c[1].z, c[2].z, c[3].z);
                 }
-            };
+                let mut diffuse = V3::splat(Vec3::new(f.ambient[0], f.ambient[1], f.ambient[2]));
+                let mut spec = V3::splat(Vec3::ZERO);
+                let count = (f.params[1] as usize).min(MAX_LIGHTS);
+                for l in &f.lights[..count] {
+                    let lv = Vec3::new(l.vector[0], l.vector[1], l.vector[2]);
+                    let rad = Vec3::new(l.radiance[0], l.radiance[1], l.radiance[2]);
+                    let (to_light, atten) = if l.vector[3] == 0.0 {
+                        (V3::splat(-lv), Lanes::ONE)
+                    } else {
+                        let d = V3::splat(lv).sub(pos);
+                        (d.normalize_or_zero(), Lanes::ONE / d.dot(d).max(Lanes::splat(1e-8)))
+                    };
+                    let ndl = n.dot(to_light).max(Lanes::ZERO);
+                    let k = ndl * atten;
+                    diffuse = diffuse.add(V3 { x: k * rad.x, y: k * rad.y, z: k * rad.z });
+                    let lit = ndl.cmpgt(Lanes::ZERO);
+                    if m.specular > 0.0 && lit.any() {
+                        let h = to_light.add(view).normalize_or_zero();
+                        let nh = n.dot(h).max(Lanes::ZERO);
+                        // powf per lane, as the GPU's pow
+                        let p = Lanes::from_array(std::array::from_fn(|i| nh[i].powf(m.shininess)));
+                        let s = Lanes::select(lit, p * atten * m.specular, Lanes::ZERO);
+                        spec = spec.add(V3 { x: s * rad.x, y: s * rad.y, z: s * rad.z });
+                    }
+                }
+                let c = V3 {
+                    x: albedo.x * diffuse.x + spec.x,
+                    y: albedo.y * diffuse.y + spec.y,
+                    z: albedo.z * diffuse.z + spec.z,
+                };
+                for (i, o) in out.iter_mut().enumerate() {
+                    *o = encode(c.lane(i));
+                }
+            }
         }
         out
     }
