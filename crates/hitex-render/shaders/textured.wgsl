@@ -28,10 +28,14 @@ struct Material {
     lod_bias: f32,
     level_count: u32,
     size: vec2<u32>,
+    atlas_size: vec2<u32>,
+    origins: array<vec4<u32>, 8>, // level 2k at .xy, level 2k+1 at .zw
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(1) @binding(0) var<uniform> material: Material;
+// Every MIP level of the texture in one atlas (prepare.rs, AtlasLayout),
+// read at level of detail 0: see level_texel().
 @group(1) @binding(1) var tex: texture_2d<f32>;
 
 struct VsIn {
@@ -109,18 +113,28 @@ fn level_of_detail(rule: u32, jac: vec4<f32>, size: vec2<u32>) -> f32 {
     return NO_LEVEL;
 }
 
-// Size of a MIP level from the uniform, not textureDimensions(tex, level):
-// llvmpipe answers size queries with one level per SIMD group, which is wrong
-// when neighbouring pixels select different levels.
+// Size of a MIP level from the uniform (the pyramid rule max(1, n >> l)).
 fn level_size(level: i32) -> vec2<i32> {
     return max(vec2<i32>(material.size) >> vec2<u32>(u32(level)), vec2<i32>(1));
+}
+
+// Texel (x, y) of a MIP level, in range by construction. The levels live side
+// by side in one atlas read at level of detail 0 because drivers disagree on
+// per-pixel levels in texel fetches (llvmpipe resolves sizes once per SIMD group).
+fn level_texel(level: i32, x: i32, y: i32) -> vec4<f32> {
+    let o4 = material.origins[level / 2];
+    var o = o4.xy;
+    if (level % 2) == 1 {
+        o = o4.zw;
+    }
+    return textureLoad(tex, vec2<i32>(o) + vec2<i32>(x, y), 0);
 }
 
 fn nearest(wrap: u32, uv: vec2<f32>) -> vec4<f32> {
     let d = level_size(0);
     let x = wrap_index(i32(floor(uv.x * f32(d.x))), d.x, wrap);
     let y = wrap_index(i32(floor(uv.y * f32(d.y))), d.y, wrap);
-    return textureLoad(tex, vec2<i32>(x, y), 0);
+    return level_texel(0, x, y);
 }
 
 fn bilinear(level: i32, wrap: u32, uv: vec2<f32>) -> vec4<f32> {
@@ -137,10 +151,10 @@ fn bilinear(level: i32, wrap: u32, uv: vec2<f32>) -> vec4<f32> {
     let xb = wrap_index(x0 + 1, d.x, wrap);
     let ya = wrap_index(y0, d.y, wrap);
     let yb = wrap_index(y0 + 1, d.y, wrap);
-    let t00 = textureLoad(tex, vec2<i32>(xa, ya), level);
-    let t10 = textureLoad(tex, vec2<i32>(xb, ya), level);
-    let t01 = textureLoad(tex, vec2<i32>(xa, yb), level);
-    let t11 = textureLoad(tex, vec2<i32>(xb, yb), level);
+    let t00 = level_texel(level, xa, ya);
+    let t10 = level_texel(level, xb, ya);
+    let t01 = level_texel(level, xa, yb);
+    let t11 = level_texel(level, xb, yb);
     let top = t00 + (t10 - t00) * alpha;
     let bottom = t01 + (t11 - t01) * alpha;
     return top + (bottom - top) * beta;

@@ -72,6 +72,67 @@ pub struct MaterialUniform {
     pub level_count: u32,
     /// Level-0 size of the bound texture.
     pub size: [u32; 2],
+    /// Size of the GPU atlas holding every level (see [`AtlasLayout`]).
+    pub atlas_size: [u32; 2],
+    /// Padding to the 16-byte alignment of `origins` in WGSL.
+    pub _pad: [u32; 2],
+    /// Origin of level `l` in the atlas: `origins[l / 2]` holds levels `2k`
+    /// (x, y) and `2k + 1` (z, w). Up to [`MAX_ATLAS_LEVELS`] levels.
+    pub origins: [[u32; 4]; MAX_ATLAS_LEVELS / 2],
+}
+
+/// Most MIP levels an atlas records (a 16384-texel side has 15).
+pub const MAX_ATLAS_LEVELS: usize = 16;
+
+/// Largest atlas side the layout aims for (the 2-D limit of common GPUs).
+pub const ATLAS_SIDE_LIMIT: u32 = 16384;
+
+/// Where each MIP level of a pyramid sits in one 2-D texture, the classic
+/// layout with level 0 at the origin and the smaller levels stacked in a
+/// column to its right (or, for very wide textures, in a row below it).
+///
+/// The GPU backend samples levels through `textureLoad(atlas, origin + xy, 0)`:
+/// one level-of-detail for every pixel of a SIMD group, so no driver has to
+/// honour per-pixel mip levels in texel fetches (llvmpipe's GL path does not).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct AtlasLayout {
+    /// Atlas width in texels.
+    pub width: u32,
+    /// Atlas height in texels.
+    pub height: u32,
+    /// Origin (x, y) of each level.
+    pub origins: Vec<[u32; 2]>,
+}
+
+impl AtlasLayout {
+    /// Layout for a pyramid whose level 0 is `w`×`h` with `levels` levels
+    /// (sizes halve, floor, down to 1 as in [`MipPyramid`]).
+    pub fn new(w: u32, h: u32, levels: usize) -> Self {
+        let size = |l: usize| ((w >> l).max(1), (h >> l).max(1));
+        let mut origins = vec![[0u32, 0u32]];
+        let (w1, _) = size(1.min(levels.saturating_sub(1)));
+        if levels <= 1 {
+            return Self { width: w, height: h, origins };
+        }
+        if w + w1 <= ATLAS_SIDE_LIMIT || w < h {
+            // column to the right
+            let mut y = 0;
+            for l in 1..levels {
+                origins.push([w, y]);
+                y += size(l).1;
+            }
+            Self { width: w + w1, height: h.max(y), origins }
+        } else {
+            // row below
+            let (_, h1) = size(1);
+            let mut x = 0;
+            for l in 1..levels {
+                origins.push([x, h]);
+                x += size(l).0;
+            }
+            Self { width: w.max(x), height: h + h1, origins }
+        }
+    }
 }
 
 /// A range of indices drawn with one material.
@@ -154,6 +215,12 @@ impl PreparedScene {
             let tex = m.texture.map(|t| scene.textures[t].clone());
             let (level_count, size) =
                 tex.as_ref().map(|t| (t.level_count() as u32, [t.width(), t.height()])).unwrap_or((1, [1, 1]));
+            let layout = AtlasLayout::new(size[0], size[1], level_count as usize);
+            let mut origins = [[0u32; 4]; MAX_ATLAS_LEVELS / 2];
+            for (l, o) in layout.origins.iter().enumerate().take(MAX_ATLAS_LEVELS) {
+                origins[l / 2][2 * (l % 2)] = o[0];
+                origins[l / 2][2 * (l % 2) + 1] = o[1];
+            }
             materials.push(MaterialUniform {
                 base_color: m.base_color.to_array(),
                 uv_scale: m.uv_scale.to_array(),
@@ -175,8 +242,11 @@ impl PreparedScene {
                     LevelRule::VulkanRho => 1,
                 },
                 lod_bias: m.sampler.lod_bias,
-                level_count,
+                level_count: level_count.min(MAX_ATLAS_LEVELS as u32),
                 size,
+                atlas_size: [layout.width, layout.height],
+                _pad: [0; 2],
+                origins,
             });
             material_textures.push(tex);
         }
@@ -236,4 +306,36 @@ pub fn background_rgba8(frame: &FrameUniform) -> [u8; 4] {
         hitex_core::texture::linear_to_srgb_u8(b.z),
         255,
     ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn atlas_levels_do_not_overlap_and_fit() {
+        for (w, h) in [(512u32, 512u32), (10, 3), (1, 1), (1, 64), (300, 7), (12000, 16), (16, 12000)] {
+            let levels = 1 + (w.max(h) as f32).log2().floor() as usize;
+            let a = AtlasLayout::new(w, h, levels);
+            assert_eq!(a.origins.len(), levels);
+            let rects: Vec<(u32, u32, u32, u32)> =
+                (0..levels).map(|l| (a.origins[l][0], a.origins[l][1], (w >> l).max(1), (h >> l).max(1))).collect();
+            for (i, r) in rects.iter().enumerate() {
+                assert!(r.0 + r.2 <= a.width && r.1 + r.3 <= a.height, "{w}x{h} level {i} outside");
+                for s in &rects[i + 1..] {
+                    let apart = r.0 + r.2 <= s.0 || s.0 + s.2 <= r.0 || r.1 + r.3 <= s.1 || s.1 + s.3 <= r.1;
+                    assert!(apart, "{w}x{h}: levels overlap");
+                }
+            }
+            assert!(a.width <= ATLAS_SIDE_LIMIT && a.height <= ATLAS_SIDE_LIMIT, "{w}x{h} → {}x{}", a.width, a.height);
+        }
+    }
+
+    #[test]
+    fn uniform_layouts_match_wgsl() {
+        // offsets of the WGSL struct members (see shaders/textured.wgsl)
+        assert_eq!(std::mem::size_of::<MaterialUniform>(), 64 + 16 + 128);
+        assert_eq!(std::mem::offset_of!(MaterialUniform, origins), 80);
+        assert_eq!(std::mem::size_of::<FrameUniform>(), 128 + 32 * MAX_LIGHTS);
+    }
 }

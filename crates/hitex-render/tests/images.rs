@@ -80,3 +80,24 @@ fn gpu_reuses_uploads_across_views_and_sizes() {
         assert_images(&format!("reuse-{i}-gpu"), &g, &c, GPU_VS_CPU);
     }
 }
+
+/// The GL fallback (Mesa's llvmpipe through EGL) against the CPU. Not required
+/// by HITEX_REQUIRE_GPU: machines with Vulkan may lack a usable EGL.
+#[test]
+fn gl_backend_matches_cpu() {
+    let mut gl = match hitex_render::GpuRenderer::with_backends(wgpu::Backends::GL) {
+        Ok(g) => g,
+        Err(e) => {
+            eprintln!("SKIPPED gl_backend_matches_cpu: no GL adapter ({e})");
+            return;
+        }
+    };
+    eprintln!("gl: {}", gl.adapter());
+    let cpu = CpuRenderer::new();
+    for (name, scene) in cases().into_iter().take(4) {
+        let p = PreparedScene::new(&scene);
+        let c = cpu.render_view(&p, &p.camera, W, H).unwrap();
+        let g = gl.render_view(&p, &p.camera, W, H).unwrap();
+        assert_images(&format!("{name}-gl"), &g, &c, GPU_VS_CPU);
+    }
+}

@@ -9,12 +9,24 @@
 //! so no texel is dropped and the mean brightness is kept.
 
 use super::image::{ColorSpace, Image, decode, linear_to_srgb_u8};
+use glam::Vec4;
 use rayon::prelude::*;
+use std::sync::OnceLock;
 
 /// A chain of images, level 0 the finest.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct MipPyramid {
     levels: Vec<Image>,
+    /// Every level decoded to linear RGBA, built on first use by the CPU
+    /// sampler: the values the GPU's sRGB decode yields for each texel, held
+    /// so that a fetch is one aligned load instead of three table lookups.
+    linear: OnceLock<Vec<Vec<Vec4>>>,
+}
+
+impl PartialEq for MipPyramid {
+    fn eq(&self, other: &Self) -> bool {
+        self.levels == other.levels
+    }
 }
 
 impl MipPyramid {
@@ -29,12 +41,27 @@ impl MipPyramid {
             let next = downsample(last);
             levels.push(next);
         }
-        Self { levels }
+        Self { levels, linear: OnceLock::new() }
     }
 
     /// A pyramid of one level (no MIP mapping).
     pub fn single(base: Image) -> Self {
-        Self { levels: vec![base] }
+        Self { levels: vec![base], linear: OnceLock::new() }
+    }
+
+    /// Level `l` decoded to linear RGBA (colour through the sRGB curve for sRGB
+    /// images), row-major; decoded once, on first use.
+    pub fn linear_level(&self, l: usize) -> &[Vec4] {
+        let all = self.linear.get_or_init(|| {
+            self.levels
+                .iter()
+                .map(|img| {
+                    let cs = img.color_space();
+                    img.texels().par_iter().map(|t| Vec4::from_array(decode(*t, cs))).collect()
+                })
+                .collect()
+        });
+        &all[l]
     }
 
     /// Number of levels (≥ 1).

@@ -14,7 +14,6 @@
 //! `a = ⌊2^L r_m⌋` is taken of `2^L r_m − ½`, so a texture drawn 1:1 is not
 //! shifted by half a texel. `shaders/textured.wgsl` repeats these steps.
 
-use super::image::Image;
 use super::pyramid::MipPyramid;
 use glam::{Vec2, Vec4};
 
@@ -105,8 +104,8 @@ pub fn sample(pyr: &MipPyramid, opts: &SamplerOptions, uv: Vec2, jac: Jacobian) 
     let uv = if uv.is_finite() { uv } else { Vec2::ZERO };
     let uv = Vec2::new(reduce(uv.x, opts.wrap), reduce(uv.y, opts.wrap));
     match opts.filter {
-        Filter::Nearest => nearest(pyr.level(0), opts.wrap, uv),
-        Filter::Bilinear => bilinear(pyr.level(0), opts.wrap, uv),
+        Filter::Nearest => nearest(pyr, opts.wrap, uv),
+        Filter::Bilinear => bilinear(pyr, 0, opts.wrap, uv),
         Filter::Trilinear => {
             // level selection
             let lambda = level_of_detail(opts.level_rule, jac, pyr.width(), pyr.height()) + opts.lod_bias;
@@ -116,9 +115,9 @@ pub fn sample(pyr: &MipPyramid, opts: &SamplerOptions, uv: Vec2, jac: Jacobian) 
             let gamma = lambda - l0;
             let l0 = l0 as usize;
             // bilinear at L and L+1, linear blend
-            let c0 = bilinear(pyr.level(l0), opts.wrap, uv);
+            let c0 = bilinear(pyr, l0, opts.wrap, uv);
             if gamma > 0.0 {
-                let c1 = bilinear(pyr.level(l0 + 1), opts.wrap, uv);
+                let c1 = bilinear(pyr, l0 + 1, opts.wrap, uv);
                 c0 + (c1 - c0) * gamma
             } else {
                 c0
@@ -166,37 +165,33 @@ pub fn floor(t: f32) -> f32 {
     if i > t { i - 1.0 } else { i }
 }
 
-fn nearest(img: &Image, wrap: Wrap, uv: Vec2) -> Vec4 {
-    let (w, h) = (img.width() as i32, img.height() as i32);
+fn nearest(pyr: &MipPyramid, wrap: Wrap, uv: Vec2) -> Vec4 {
+    let (w, h) = (pyr.width() as i32, pyr.height() as i32);
     let x = wrap_index(floor(uv.x * w as f32) as i32, w, wrap);
     let y = wrap_index(floor(uv.y * h as f32) as i32, h, wrap);
-    Vec4::from_array(img.texel_linear(x as u32, y as u32))
+    pyr.linear_level(0)[y as usize * w as usize + x as usize]
 }
 
-/// Bilinear lookup in one level (eq. (4)'s t_c): the four texels around
+/// Bilinear lookup in level `level` (eq. (4)'s t_c): the four texels around
 /// `uv·size − ½` weighted by the fractional position.
-pub fn bilinear(img: &Image, wrap: Wrap, uv: Vec2) -> Vec4 {
+pub fn bilinear(pyr: &MipPyramid, level: usize, wrap: Wrap, uv: Vec2) -> Vec4 {
+    let img = pyr.level(level);
     let (w, h) = (img.width() as i32, img.height() as i32);
     let x = uv.x * w as f32 - 0.5;
     let y = uv.y * h as f32 - 0.5;
     let (xf, yf) = (floor(x), floor(y));
     let (alpha, beta) = (x - xf, y - yf);
     let (x0, y0) = (xf as i32, yf as i32);
-    let xa = wrap_index(x0, w, wrap) as u32;
-    let xb = wrap_index(x0 + 1, w, wrap) as u32;
-    let ya = wrap_index(y0, h, wrap) as u32;
-    let yb = wrap_index(y0 + 1, h, wrap) as u32;
-    let texels = img.texels();
-    let (ra, rb) = (ya as usize * w as usize, yb as usize * w as usize);
-    let lut = super::image::decode_table(img.color_space());
-    let fetch = |i: usize| {
-        let t = texels[i];
-        Vec4::new(lut[t[0] as usize], lut[t[1] as usize], lut[t[2] as usize], t[3] as f32 * (1.0 / 255.0))
-    };
-    let t00 = fetch(ra + xa as usize);
-    let t10 = fetch(ra + xb as usize);
-    let t01 = fetch(rb + xa as usize);
-    let t11 = fetch(rb + xb as usize);
+    let xa = wrap_index(x0, w, wrap) as usize;
+    let xb = wrap_index(x0 + 1, w, wrap) as usize;
+    let ya = wrap_index(y0, h, wrap) as usize;
+    let yb = wrap_index(y0 + 1, h, wrap) as usize;
+    let texels = pyr.linear_level(level);
+    let (ra, rb) = (ya * w as usize, yb * w as usize);
+    let t00 = texels[ra + xa];
+    let t10 = texels[ra + xb];
+    let t01 = texels[rb + xa];
+    let t11 = texels[rb + xb];
     let top = t00 + (t10 - t00) * alpha;
     let bottom = t01 + (t11 - t01) * alpha;
     top + (bottom - top) * beta

@@ -47,8 +47,16 @@ impl GpuContext {
     /// Opens the best adapter, requesting its own limits and the features
     /// hitex can use (BC texture compression, filterable float textures).
     pub fn new() -> Result<Self, GpuError> {
+        Self::with_backends(wgpu::Backends::all())
+    }
+
+    /// Like [`GpuContext::new`], choosing only among adapters of `backends`.
+    pub fn with_backends(backends: wgpu::Backends) -> Result<Self, GpuError> {
         let instance = instance();
-        let adapter = adapters(&instance).into_iter().next().ok_or(GpuError::NoAdapter)?;
+        let adapter = adapters(&instance)
+            .into_iter()
+            .find(|a| backends.contains(wgpu::Backends::from(a.get_info().backend)))
+            .ok_or(GpuError::NoAdapter)?;
         let info = adapter.get_info();
         let wanted = wgpu::Features::TEXTURE_COMPRESSION_BC | wgpu::Features::FLOAT32_FILTERABLE;
         let desc = wgpu::DeviceDescriptor {

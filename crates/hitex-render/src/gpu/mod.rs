@@ -5,7 +5,7 @@ pub mod device;
 
 pub use device::{GpuContext, adapters_report};
 
-use crate::prepare::{MaterialUniform, PreparedScene, Vertex, background_rgba8};
+use crate::prepare::{AtlasLayout, MAX_ATLAS_LEVELS, MaterialUniform, PreparedScene, Vertex, background_rgba8};
 use crate::{Frame, RenderError, Renderer, check_size};
 use hitex_core::scene::Camera;
 use hitex_core::texture::{ColorSpace, MipPyramid};
@@ -65,7 +65,12 @@ pub struct GpuRenderer {
 impl GpuRenderer {
     /// Opens the best adapter and builds the pipeline.
     pub fn new() -> Result<Self, GpuError> {
-        let ctx = GpuContext::new()?;
+        Self::with_backends(wgpu::Backends::all())
+    }
+
+    /// Opens the best adapter among `backends` (e.g. `wgpu::Backends::GL`).
+    pub fn with_backends(backends: wgpu::Backends) -> Result<Self, GpuError> {
+        let ctx = GpuContext::with_backends(backends)?;
         let device = &ctx.device;
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         // Bounds checks are ours, not naga's: every texel index goes through
@@ -202,27 +207,42 @@ impl GpuRenderer {
         &self.ctx
     }
 
-    fn upload_texture(&self, pyr: &MipPyramid) -> wgpu::Texture {
+    /// Uploads every level of `pyr` into one atlas texture laid out by
+    /// [`AtlasLayout`] (the same layout the material uniform describes).
+    fn upload_texture(&self, pyr: &MipPyramid) -> Result<wgpu::Texture, GpuError> {
         let format = match pyr.color_space() {
             ColorSpace::Srgb => wgpu::TextureFormat::Rgba8UnormSrgb,
             ColorSpace::Linear => wgpu::TextureFormat::Rgba8Unorm,
         };
+        let levels = pyr.level_count().min(MAX_ATLAS_LEVELS);
+        let layout = AtlasLayout::new(pyr.width(), pyr.height(), levels);
+        let max = self.ctx.device.limits().max_texture_dimension_2d;
+        if layout.width > max || layout.height > max {
+            return Err(GpuError::Render(format!(
+                "a {}x{} texture needs a {}x{} MIP atlas, beyond the adapter's limit of {max}",
+                pyr.width(),
+                pyr.height(),
+                layout.width,
+                layout.height
+            )));
+        }
         let tex = self.ctx.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("pyramid"),
-            size: wgpu::Extent3d { width: pyr.width(), height: pyr.height(), depth_or_array_layers: 1 },
-            mip_level_count: pyr.level_count() as u32,
+            label: Some("mip atlas"),
+            size: wgpu::Extent3d { width: layout.width, height: layout.height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
             format,
             usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
             view_formats: &[],
         });
-        for (l, img) in pyr.levels().iter().enumerate() {
+        for (l, img) in pyr.levels().iter().enumerate().take(levels) {
+            let o = layout.origins[l];
             self.ctx.queue.write_texture(
                 wgpu::TexelCopyTextureInfo {
                     texture: &tex,
-                    mip_level: l as u32,
-                    origin: wgpu::Origin3d::ZERO,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d { x: o[0], y: o[1], z: 0 },
                     aspect: wgpu::TextureAspect::All,
                 },
                 img.bytes(),
@@ -234,13 +254,13 @@ impl GpuRenderer {
                 wgpu::Extent3d { width: img.width(), height: img.height(), depth_or_array_layers: 1 },
             );
         }
-        tex
+        Ok(tex)
     }
 
-    fn upload(&mut self, scene: &PreparedScene) {
+    fn upload(&mut self, scene: &PreparedScene) -> Result<(), GpuError> {
         let key = scene.id();
         if self.uploaded.as_ref().is_some_and(|u| u.key == key) {
-            return;
+            return Ok(());
         }
         let device = &self.ctx.device;
         let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -266,7 +286,7 @@ impl GpuRenderer {
             let ti = match cache.iter().find(|(p, _)| *p == ptr && t.is_some()) {
                 Some((_, i)) => *i,
                 None => {
-                    textures.push(self.upload_texture(pyr));
+                    textures.push(self.upload_texture(pyr)?);
                     cache.push((ptr, textures.len() - 1));
                     textures.len() - 1
                 }
@@ -288,6 +308,7 @@ impl GpuRenderer {
         }
         let _ = &self.frame_layout;
         self.uploaded = Some(Uploaded { key, vertices, indices, material_groups: groups, _textures: textures });
+        Ok(())
     }
 
     fn ensure_target(&mut self, width: u32, height: u32) {
@@ -341,7 +362,7 @@ impl GpuRenderer {
                 "{width}x{height} exceeds the adapter's limit of {max} pixels per side"
             )));
         }
-        self.upload(scene);
+        self.upload(scene)?;
         self.ensure_target(width, height);
         let (Some(up), Some(tg)) = (self.uploaded.as_ref(), self.target.as_ref()) else {
             return Err(RenderError::Gpu(GpuError::Render("resources missing after upload".into())));
