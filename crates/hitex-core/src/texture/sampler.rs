@@ -201,7 +201,7 @@ pub fn bilinear(pyr: &MipPyramid, level: usize, wrap: Wrap, uv: Vec2) -> Vec4 {
 mod tests {
     use super::*;
     use crate::assert_near;
-    use crate::texture::image::ColorSpace;
+    use crate::texture::image::{ColorSpace, Image};
     use proptest::prelude::*;
 
     fn lin(data: Vec<[u8; 4]>, w: u32, h: u32) -> MipPyramid {
