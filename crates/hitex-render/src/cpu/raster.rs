@@ -30,8 +30,10 @@ pub const GUARD: f32 = 4.0;
 /// A fragment program shading a 2×2 quad. Lanes are (0,0) (1,0) (0,1) (1,1).
 pub trait QuadShader<const K: usize>: Sync {
     /// Shades the quad. `v` holds perspective-correct varyings per lane, `w`
-    /// the perspective-correct clip w. Returns RGBA8 per lane.
-    fn shade(&self, material: usize, v: &[[f32; K]; 4], w: [f32; 4]) -> [[u8; 4]; 4];
+    /// the perspective-correct clip w; bit `i` of `live` is set for lanes whose
+    /// colour is written (the others are helpers: they feed derivatives, and
+    /// their colour may be left uncomputed). Returns RGBA8 per lane.
+    fn shade(&self, material: usize, v: &[[f32; K]; 4], w: [f32; 4], live: u8) -> [[u8; 4]; 4];
 }
 
 /// Colour and depth buffers.
@@ -376,7 +378,7 @@ fn shade_quad<const K: usize, S: QuadShader<K>>(
             *out = (a[j] + l1[lane] * b[j] + l2[lane] * c[j]) * inv_q;
         }
     }
-    let rgba = shader.shade(t.material, &v, w);
+    let rgba = shader.shade(t.material, &v, w, mask);
     for lane in 0..4 {
         if mask & (1 << lane) != 0 {
             let (lx, ly) = (qx + (lane as u32 & 1), qy + (lane as u32 >> 1) - y_band);
@@ -394,7 +396,7 @@ mod tests {
     /// Writes the lane's first varying as the red channel and counts coverage in green.
     struct Probe;
     impl QuadShader<1> for Probe {
-        fn shade(&self, _: usize, v: &[[f32; 1]; 4], _: [f32; 4]) -> [[u8; 4]; 4] {
+        fn shade(&self, _: usize, v: &[[f32; 1]; 4], _: [f32; 4], _: u8) -> [[u8; 4]; 4] {
             v.map(|a| [(a[0] * 255.0).round().clamp(0.0, 255.0) as u8, 1, 0, 255])
         }
     }

@@ -177,7 +177,7 @@ impl V3 {
 }
 
 impl QuadShader<VARYINGS> for TexturedProgram<'_> {
-    fn shade(&self, material: usize, v: &[[f32; VARYINGS]; 4], w: [f32; 4]) -> [[u8; 4]; 4] {
+    fn shade(&self, material: usize, v: &[[f32; VARYINGS]; 4], w: [f32; 4], live: u8) -> [[u8; 4]; 4] {
         let (m, opts, tex) = &self.materials[material];
         let f = self.frame;
         // inputs, one lane per pixel
@@ -237,9 +237,12 @@ impl QuadShader<VARYINGS> for TexturedProgram<'_> {
                 // albedo = base colour × texel
                 let mut albedo = V3::splat(Vec4::from_array(m.base_color).truncate());
                 if let Some(t) = tex.filter(|_| m.has_texture == 1) {
+                    // helper lanes feed derivatives only: their texels are never seen
                     let mut c = [Vec4::ONE; 4];
                     for (i, ci) in c.iter_mut().enumerate() {
-                        *ci = sample(t, opts, uv(i), jac(i));
+                        if live & (1 << i) != 0 {
+                            *ci = sample(t, opts, uv(i), jac(i));
+                        }
                     }
                     albedo.x *= Lanes::new(c[0].x, c[1].x, c[2].x, c[3].x);
                     albedo.y *= Lanes::new(c[0].y, c[1].y, c[2].y, c[3].y);
