@@ -215,8 +215,13 @@ fn run(cli: Cli) -> Result<(), CliError> {
             let (w, h) = size.unwrap_or((s.width, s.height));
             let prepared = PreparedScene::new(&s);
             let mut r = AnyRenderer::open(backend.into())?;
+            let spinner = indicatif::ProgressBar::new_spinner();
+            spinner.set_message(format!("rendering {w}x{h} with {}", r.name()));
+            spinner.enable_steady_tick(std::time::Duration::from_millis(120));
             let t = Instant::now();
-            let frame = r.render(&prepared, &prepared.camera, w, h)?;
+            let frame = r.render(&prepared, &prepared.camera, w, h);
+            spinner.finish_and_clear();
+            let frame = frame?;
             let ms = t.elapsed().as_secs_f64() * 1e3;
             save(&frame, &output)?;
             println!(

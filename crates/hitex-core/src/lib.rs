@@ -9,6 +9,7 @@
 //! Everything here is testable with `cargo test` alone and usable as a library.
 
 pub mod error;
+pub mod nurbs;
 pub mod scene;
 pub mod texture;
 pub mod tolerance;

@@ -6,10 +6,12 @@
 //!
 //! Every error names the file, and the record or key where known.
 
+pub mod iges;
 pub mod image_io;
 pub mod obj;
 pub mod scene_file;
 
+pub use iges::{IgesModel, IgesSurface, load_iges, parse_iges};
 pub use image_io::{load_image, save_png, write_atomic};
 pub use obj::load_obj;
 pub use scene_file::{FileLoader, load_scene};

@@ -11,6 +11,7 @@
 pub mod compare;
 pub mod cpu;
 pub mod gpu;
+pub mod nurbs;
 pub mod prepare;
 
 pub use compare::{ImageDiff, compare_rgba};

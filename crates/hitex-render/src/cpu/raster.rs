@@ -34,6 +34,16 @@ pub trait QuadShader<const K: usize>: Sync {
     /// colour is written (the others are helpers: they feed derivatives, and
     /// their colour may be left uncomputed). Returns RGBA8 per lane.
     fn shade(&self, material: usize, v: &[[f32; K]; 4], w: [f32; 4], live: u8) -> [[u8; 4]; 4];
+
+    /// True when the program computes its own depth ([`QuadShader::shade_depth`],
+    /// WGSL `@builtin(frag_depth)`): the depth test then runs after shading.
+    const WRITES_DEPTH: bool = false;
+
+    /// Shades the quad and returns each lane's depth in [0, 1] as well.
+    /// Programs that set [`QuadShader::WRITES_DEPTH`] implement it.
+    fn shade_depth(&self, material: usize, v: &[[f32; K]; 4], w: [f32; 4], live: u8, z: [f32; 4]) -> ([[u8; 4]; 4], [f32; 4]) {
+        (self.shade(material, v, w, live), z)
+    }
 }
 
 /// Colour and depth buffers.
@@ -352,19 +362,24 @@ fn shade_quad<const K: usize, S: QuadShader<K>>(
     // screen-linear barycentrics λ1 = E(edge 2→0)/A, λ2 = E(edge 0→1)/A
     let l1 = e_lane.map(|e| e[1] as f32 * t.inv_area);
     let l2 = e_lane.map(|e| e[2] as f32 * t.inv_area);
-    // early depth test
     let z: [f32; 4] = std::array::from_fn(|lane| t.z[0] + l1[lane] * t.z[1] + l2[lane] * t.z[2]);
-    for (lane, zl) in z.iter().enumerate() {
-        if mask & (1 << lane) != 0 {
-            let (lx, ly) = (qx + (lane as u32 & 1), qy + (lane as u32 >> 1) - y_band);
-            let i = ly as usize * width as usize + lx as usize;
-            if zl.partial_cmp(&depth[i]) != Some(std::cmp::Ordering::Less) {
-                mask &= !(1 << lane);
+    let index = |lane: usize| {
+        let (lx, ly) = (qx + (lane as u32 & 1), qy + (lane as u32 >> 1) - y_band);
+        ly as usize * width as usize + lx as usize
+    };
+    let depth_test = |mask: &mut u8, z: &[f32; 4], depth: &[f32]| {
+        for (lane, zl) in z.iter().enumerate() {
+            if *mask & (1 << lane) != 0 && zl.partial_cmp(&depth[index(lane)]) != Some(std::cmp::Ordering::Less) {
+                *mask &= !(1 << lane);
             }
         }
-    }
-    if mask == 0 {
-        return;
+    };
+    // early depth test, unless the program computes depth itself
+    if !S::WRITES_DEPTH {
+        depth_test(&mut mask, &z, depth);
+        if mask == 0 {
+            return;
+        }
     }
     // perspective-correct varyings for all lanes
     let mut v = [[0.0f32; K]; 4];
@@ -378,11 +393,18 @@ fn shade_quad<const K: usize, S: QuadShader<K>>(
             *out = (a[j] + l1[lane] * b[j] + l2[lane] * c[j]) * inv_q;
         }
     }
-    let rgba = shader.shade(t.material, &v, w, mask);
+    let (rgba, z) = if S::WRITES_DEPTH {
+        let (rgba, z) = shader.shade_depth(t.material, &v, w, mask, z);
+        // late depth test on the program's depth (out-of-range depth is clipped)
+        let z = z.map(|d| if (0.0..=1.0).contains(&d) { d } else { f32::NAN });
+        depth_test(&mut mask, &z, depth);
+        (rgba, z)
+    } else {
+        (shader.shade(t.material, &v, w, mask), z)
+    };
     for lane in 0..4 {
         if mask & (1 << lane) != 0 {
-            let (lx, ly) = (qx + (lane as u32 & 1), qy + (lane as u32 >> 1) - y_band);
-            let i = ly as usize * width as usize + lx as usize;
+            let i = index(lane);
             depth[i] = z[lane];
             color[i] = rgba[lane];
         }

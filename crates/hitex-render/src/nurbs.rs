@@ -1,0 +1,274 @@
+//! NURBS scenes → data both backends consume: the paper's knot and
+//! control-point textures, and a coarse tessellation that only generates
+//! fragments carrying (u, v, patch).
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Mat4, Vec3};
+use hitex_core::nurbs::NurbsSurface;
+use hitex_core::scene::Camera;
+
+/// What the NURBS fragment program shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum NurbsMode {
+    /// Lit surface (Blinn–Phong) with the exact normal.
+    #[default]
+    Shaded,
+    /// Isophotes: bands of equal angle between normal and light.
+    Isophote,
+    /// Reflection lines of a striped environment.
+    Zebra,
+    /// Gaussian curvature on a diverging colour ramp.
+    Gauss,
+    /// Mean curvature on a diverging colour ramp.
+    Mean,
+    /// Isophotes of normals interpolated from the tessellation's vertices
+    /// (per-vertex evaluation, the paper's Fig. 4 comparison).
+    VertexNormals,
+    /// The exact normal as RGB.
+    Normal,
+}
+
+impl NurbsMode {
+    /// Every mode with its CLI name.
+    pub const ALL: [(&'static str, NurbsMode); 7] = [
+        ("shaded", NurbsMode::Shaded),
+        ("isophote", NurbsMode::Isophote),
+        ("zebra", NurbsMode::Zebra),
+        ("gauss", NurbsMode::Gauss),
+        ("mean", NurbsMode::Mean),
+        ("vertex-normals", NurbsMode::VertexNormals),
+        ("normal", NurbsMode::Normal),
+    ];
+    /// Index used by both fragment programs.
+    pub fn index(self) -> u32 {
+        match self {
+            NurbsMode::Shaded => 0,
+            NurbsMode::Isophote => 1,
+            NurbsMode::Zebra => 2,
+            NurbsMode::Gauss => 3,
+            NurbsMode::Mean => 4,
+            NurbsMode::VertexNormals => 5,
+            NurbsMode::Normal => 6,
+        }
+    }
+}
+
+/// A tessellation vertex: coarse position, exact normal there, (u, v), patch.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct NurbsVertex {
+    /// Surface point at the vertex (only places the fragments).
+    pub position: [f32; 3],
+    /// Exact (limit) unit normal at the vertex, for the vertex-normal mode.
+    pub normal: [f32; 3],
+    /// Surface parameters.
+    pub uv: [f32; 2],
+    /// Patch index (a whole number).
+    pub patch: f32,
+    /// Padding.
+    pub _pad: f32,
+}
+
+/// Per-frame uniforms of `nurbs.wgsl` (group 0, binding 0).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct NurbsFrame {
+    /// World-to-clip matrix.
+    pub view_proj: [[f32; 4]; 4],
+    /// Camera position.
+    pub camera: [f32; 4],
+    /// Unit direction towards the light.
+    pub light: [f32; 4],
+    /// x: mode, y: isophote bands, z: zebra stripes, w: 0.
+    pub params: [u32; 4],
+    /// x, y: curvature range for the colour ramp; z: ambient; w: 0.
+    pub ranges: [f32; 4],
+    /// Linear background RGB.
+    pub background: [f32; 4],
+}
+
+/// The paper's textures, as flat arrays (row-major, one row per patch).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PackedNurbs {
+    /// Texels per knot row.
+    pub knot_width: u32,
+    /// u knots: texel 0 = knot count, then the knots.
+    pub knots_u: Vec<f32>,
+    /// v knots, same form.
+    pub knots_v: Vec<f32>,
+    /// Texels per control-point row.
+    pub cp_width: u32,
+    /// Texel 0 = (p, q, nu, nv); then homogeneous `(wx, wy, wz, w)`, index `1 + j·nu + i`.
+    pub control: Vec<[f32; 4]>,
+    /// Number of patches (rows).
+    pub patches: u32,
+}
+
+impl PackedNurbs {
+    /// Packs surfaces row by row.
+    pub fn new(surfaces: &[NurbsSurface]) -> Self {
+        let knot_width = surfaces.iter().map(|s| s.knots_u.len().max(s.knots_v.len()) + 1).max().unwrap_or(1) as u32;
+        let cp_width = surfaces.iter().map(|s| s.points.len() + 1).max().unwrap_or(1) as u32;
+        let rows = surfaces.len();
+        let mut knots_u = vec![0.0f32; knot_width as usize * rows];
+        let mut knots_v = vec![0.0f32; knot_width as usize * rows];
+        let mut control = vec![[0.0f32; 4]; cp_width as usize * rows];
+        for (k, s) in surfaces.iter().enumerate() {
+            let ku = &mut knots_u[k * knot_width as usize..];
+            ku[0] = s.knots_u.len() as f32;
+            for (i, x) in s.knots_u.iter().enumerate() {
+                ku[1 + i] = *x as f32;
+            }
+            let kv = &mut knots_v[k * knot_width as usize..];
+            kv[0] = s.knots_v.len() as f32;
+            for (i, x) in s.knots_v.iter().enumerate() {
+                kv[1 + i] = *x as f32;
+            }
+            let c = &mut control[k * cp_width as usize..];
+            c[0] = [s.degree_u as f32, s.degree_v as f32, s.count_u as f32, s.count_v as f32];
+            for (i, p) in s.homogeneous().iter().enumerate() {
+                c[1 + i] = p.map(|x| x as f32);
+            }
+        }
+        Self { knot_width, knots_u, knots_v, cp_width, control, patches: rows as u32 }
+    }
+}
+
+/// A NURBS model ready for either backend.
+#[derive(Debug, Clone)]
+pub struct PreparedNurbs {
+    /// The surfaces (f64 reference).
+    pub surfaces: Vec<NurbsSurface>,
+    /// Tessellation vertices.
+    pub vertices: Vec<NurbsVertex>,
+    /// Triangles.
+    pub indices: Vec<u32>,
+    /// Knot and control-point textures.
+    pub packed: PackedNurbs,
+    /// Camera framing the model.
+    pub camera: Camera,
+    /// Display mode.
+    pub mode: NurbsMode,
+    /// Isophote bands over 180°.
+    pub bands: u32,
+    /// Zebra stripes over 180°.
+    pub stripes: u32,
+    /// Curvature range mapped to the colour ramp (symmetric about 0).
+    pub curvature_range: f32,
+    /// Linear background.
+    pub background: Vec3,
+    id: u64,
+}
+
+static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1 << 40);
+
+impl PreparedNurbs {
+    /// Tessellates every patch over its parameter range into a
+    /// `density`×`density` grid and frames the model with a camera.
+    pub fn new(surfaces: Vec<NurbsSurface>, ranges: &[((f64, f64), (f64, f64))], density: u32) -> Self {
+        let density = density.clamp(1, 256);
+        let mut vertices = Vec::new();
+        let mut indices = Vec::new();
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for (k, s) in surfaces.iter().enumerate() {
+            let ((u0, u1), (v0, v1)) = ranges.get(k).copied().unwrap_or_else(|| s.domain());
+            let base = vertices.len() as u32;
+            for j in 0..=density {
+                for i in 0..=density {
+                    let u = u0 + (u1 - u0) * i as f64 / density as f64;
+                    let v = v0 + (v1 - v0) * j as f64 / density as f64;
+                    let p = s.point(u, v);
+                    let n = s.normal(u, v);
+                    for t in 0..3 {
+                        lo[t] = lo[t].min(p[t]);
+                        hi[t] = hi[t].max(p[t]);
+                    }
+                    vertices.push(NurbsVertex {
+                        position: p.map(|x| x as f32),
+                        normal: n.map(|x| x as f32),
+                        uv: [u as f32, v as f32],
+                        patch: k as f32,
+                        _pad: 0.0,
+                    });
+                }
+            }
+            let row = density + 1;
+            for j in 0..density {
+                for i in 0..density {
+                    let a = base + j * row + i;
+                    indices.extend_from_slice(&[a, a + 1, a + row, a + 1, a + row + 1, a + row]);
+                }
+            }
+        }
+        let center = Vec3::new(((lo[0] + hi[0]) / 2.0) as f32, ((lo[1] + hi[1]) / 2.0) as f32, ((lo[2] + hi[2]) / 2.0) as f32);
+        let radius = (0..3).map(|t| (hi[t] - lo[t]) / 2.0).map(|x| x * x).sum::<f64>().sqrt().max(1e-6) as f32;
+        let fov = 35.0f32;
+        let dist = radius / (fov.to_radians() / 2.0).sin() * 1.02;
+        let dir = Vec3::new(0.85, -1.5, 0.75).normalize();
+        let camera = Camera {
+            position: center + dir * dist,
+            target: center,
+            up: Vec3::Z,
+            fov_y_deg: fov,
+            near: (dist - radius * 1.5).max(dist * 0.01),
+            far: dist + radius * 1.5,
+        };
+        let packed = PackedNurbs::new(&surfaces);
+        // curvature range: the 95th percentile of |K| at the vertices (gauss)
+        let mut ks: Vec<f64> = surfaces
+            .iter()
+            .flat_map(|s| {
+                let ((u0, u1), (v0, v1)) = s.domain();
+                (0..25).map(move |k| (u0 + (u1 - u0) * ((k % 5) as f64 + 0.5) / 5.0, v0 + (v1 - v0) * ((k / 5) as f64 + 0.5) / 5.0))
+                    .map(move |(u, v)| s.curvature(u, v).mean.abs())
+            })
+            .filter(|x| x.is_finite())
+            .collect();
+        ks.sort_by(|a, b| a.total_cmp(b));
+        let curvature_range = ks.get(ks.len() * 95 / 100).copied().unwrap_or(1.0).max(1e-9) as f32;
+        Self {
+            surfaces,
+            vertices,
+            indices,
+            packed,
+            camera,
+            mode: NurbsMode::Shaded,
+            bands: 12,
+            stripes: 10,
+            curvature_range,
+            background: Vec3::new(0.06, 0.07, 0.09),
+            id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+        }
+    }
+
+    /// Identity of the uploaded content (geometry and packed textures).
+    pub fn id(&self) -> u64 {
+        self.id
+    }
+
+    /// Frame uniforms for `camera` at `width`×`height`.
+    pub fn frame(&self, camera: &Camera, width: u32, height: u32) -> NurbsFrame {
+        let vp: Mat4 = camera.view_proj(width as f32 / height as f32);
+        // light over the viewer's shoulder
+        let view_dir = (camera.target - camera.position).normalize();
+        let right = view_dir.cross(camera.up).normalize_or_zero();
+        let light = (-view_dir + right * 0.4 + camera.up.normalize() * 0.6).normalize();
+        let range = match self.mode {
+            NurbsMode::Gauss => self.curvature_range * self.curvature_range,
+            _ => self.curvature_range,
+        };
+        NurbsFrame {
+            view_proj: vp.to_cols_array_2d(),
+            camera: camera.position.extend(1.0).to_array(),
+            light: light.extend(0.0).to_array(),
+            params: [self.mode.index(), self.bands, self.stripes, 0],
+            ranges: [-range, range, 0.12, 0.0],
+            background: self.background.extend(1.0).to_array(),
+        }
+    }
+
+    /// Number of patches.
+    pub fn patch_count(&self) -> usize {
+        self.surfaces.len()
+    }
+}
