@@ -10,6 +10,8 @@ use hitex_core::texture::Filter;
 use hitex_render::{BackendChoice, PreparedScene, compare_rgba};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
+#[allow(unused_imports)]
+use std::path::Path;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -121,11 +123,39 @@ fn progress(total: u64, quiet: bool) -> ProgressBar {
     pb
 }
 
+/// A benchmark case: renders frame `i` of `n` at `w`×`h` (the camera orbits once over the frames).
+pub type CaseFn<'a> =
+    Box<dyn Fn(&mut AnyRenderer, u32, u32, u32, u32) -> Result<hitex_render::Frame, hitex_render::RenderError> + 'a>;
+
 /// Runs `cases` on the chosen backends: a warm-up frame, then `frames` timed
 /// frames orbiting the camera once; compares the first frame of both backends.
 pub fn run_cases(
     name: &str,
     cases: &[(String, Scene)],
+    frames: u32,
+    size: (u32, u32),
+    which: Backends,
+    quiet: bool,
+) -> Result<Report, CliError> {
+    let prepared: Vec<(String, PreparedScene)> =
+        cases.iter().map(|(n, s)| (n.clone(), PreparedScene::new(s))).collect();
+    let fns: Vec<(String, CaseFn)> = prepared
+        .iter()
+        .map(|(n, p)| {
+            let f: CaseFn = Box::new(move |r: &mut AnyRenderer, i: u32, k: u32, w: u32, h: u32| {
+                let cam = p.camera.orbit(std::f32::consts::TAU * i as f32 / k as f32);
+                r.render(p, &cam, w, h)
+            });
+            (n.clone(), f)
+        })
+        .collect();
+    run_case_fns(name, &fns, frames, size, which, quiet)
+}
+
+/// Like [`run_cases`] for arbitrary frame functions.
+pub fn run_case_fns(
+    name: &str,
+    cases: &[(String, CaseFn)],
     frames: u32,
     (w, h): (u32, u32),
     which: Backends,
@@ -147,20 +177,18 @@ pub fn run_cases(
     let frames = frames.max(1);
     let mut rows = Vec::new();
     let mut parity = Vec::new();
-    for (case, scene) in cases {
-        let prepared = PreparedScene::new(scene);
+    for (case, render) in cases {
         let mut first_frames = Vec::new();
         for (kind, r) in backends.iter_mut() {
             let pb = progress(frames as u64, quiet);
             pb.set_prefix(format!("{case} {kind}"));
             // warm-up: uploads, shader compilation, caches
-            let f0 = r.render(&prepared, &prepared.camera, w, h)?;
+            let f0 = render(r, 0, frames, w, h)?;
             first_frames.push(f0);
             let mut times = Vec::new();
             for i in 0..frames {
-                let cam = prepared.camera.orbit(std::f32::consts::TAU * i as f32 / frames as f32);
                 let t = Instant::now();
-                let f = r.render(&prepared, &cam, w, h)?;
+                let f = render(r, i, frames, w, h)?;
                 times.push(t.elapsed().as_secs_f64() * 1e3);
                 std::hint::black_box(&f);
                 pb.inc(1);
@@ -301,4 +329,65 @@ mod tests {
         assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
         assert_eq!(median(&mut [4.0, 1.0, 2.0, 3.0]), 2.5);
     }
+}
+
+/// Arguments of `hitex bench nurbs`.
+#[derive(clap::Args, Debug)]
+pub struct NurbsArgs {
+    /// Print JSON on stdout instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Frames per case (one full turn over them).
+    #[arg(long, default_value_t = 24)]
+    pub frames: u32,
+    /// Frame size, WIDTHxHEIGHT (the paper's is 512x512).
+    #[arg(long, value_parser = parse_size, default_value = "512x512")]
+    pub size: (u32, u32),
+    /// Backends to run.
+    #[arg(long, value_enum, default_value_t = Backends::Both)]
+    pub backends: Backends,
+    /// Also write a bar chart (SVG) of the medians.
+    #[arg(long)]
+    pub chart: Option<PathBuf>,
+}
+
+/// `hitex bench nurbs`: the paper's Table 1 models, shaded and with isophotes.
+pub fn nurbs(args: NurbsArgs) -> Result<(), CliError> {
+    use hitex_render::nurbs::NurbsMode;
+    let mut prepared = Vec::new();
+    for name in ["surface", "teapot"] {
+        let model = hitex_io::models::load_model(name)?;
+        for (mode_name, mode) in [("shaded", NurbsMode::Shaded), ("isophote", NurbsMode::Isophote)] {
+            let mut p = crate::nurbs_cmd::prepare(&model, 8);
+            p.mode = mode;
+            prepared.push((format!("{name}-{mode_name}"), p));
+        }
+    }
+    let fns: Vec<(String, CaseFn)> = prepared
+        .iter()
+        .map(|(n, p)| {
+            let f: CaseFn = Box::new(move |r: &mut AnyRenderer, i: u32, k: u32, w: u32, h: u32| {
+                let cam = p.camera.orbit(std::f32::consts::TAU * i as f32 / k as f32);
+                r.render_nurbs(p, &cam, w, h)
+            });
+            (n.clone(), f)
+        })
+        .collect();
+    if !args.json {
+        println!(
+            "hitex bench nurbs: per-pixel exact evaluation, {}x{}, {} frames per case turning once; paper (GeForce 7900 GTX, 2006): surface 212 fps, teapot 201 fps",
+            args.size.0, args.size.1, args.frames
+        );
+    }
+    let report = run_case_fns("nurbs", &fns, args.frames, args.size, args.backends, args.json)?;
+    if args.json {
+        let text = serde_json::to_string_pretty(&report).map_err(|e| CliError::Internal(e.to_string()))?;
+        println!("{text}");
+    } else {
+        print_table(&report);
+    }
+    if let Some(p) = &args.chart {
+        write_chart(&report, p)?;
+    }
+    Ok(())
 }

@@ -2,6 +2,7 @@
 
 mod bench;
 mod demo;
+mod nurbs_cmd;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use hitex_core::scene::RenderMode;
@@ -52,6 +53,11 @@ enum Command {
         #[arg(long, value_enum)]
         mode: Option<Mode>,
     },
+    /// Exact per-pixel NURBS surfaces: render, info, eval.
+    Nurbs {
+        #[command(subcommand)]
+        which: nurbs_cmd::NurbsCommand,
+    },
     /// List GPU adapters, their features and limits.
     Info,
     /// Benchmarks: CPU and GPU renderers on the same frames.
@@ -65,6 +71,8 @@ enum Command {
 enum BenchCommand {
     /// Textured meshes with nearest, bilinear and trilinear filtering.
     Texture(bench::TextureArgs),
+    /// The paper's Table 1 models at 512×512, rotating.
+    Nurbs(bench::NurbsArgs),
 }
 
 #[derive(Clone, Copy, ValueEnum, PartialEq, Eq, Debug)]
@@ -174,6 +182,19 @@ impl AnyRenderer {
             Self::Gpu(g) => format!("gpu: {}", g.adapter()),
         }
     }
+    /// Renders one frame of a NURBS model.
+    pub fn render_nurbs(
+        &mut self,
+        scene: &hitex_render::nurbs::PreparedNurbs,
+        camera: &hitex_core::scene::Camera,
+        w: u32,
+        h: u32,
+    ) -> Result<Frame, RenderError> {
+        match self {
+            Self::Cpu(c) => c.render_nurbs(scene, camera, w, h),
+            Self::Gpu(g) => g.render_nurbs(scene, camera, w, h),
+        }
+    }
     /// Renders one frame.
     pub fn render(
         &mut self,
@@ -232,6 +253,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
             );
             Ok(())
         }
+        Command::Nurbs { which } => nurbs_cmd::run(which),
         Command::Info => {
             println!("hitex {}", env!("CARGO_PKG_VERSION"));
             println!("cpu backend: {} threads", rayon_threads());
@@ -240,6 +262,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         }
         Command::Bench { which } => match which {
             BenchCommand::Texture(args) => bench::texture(args),
+            BenchCommand::Nurbs(args) => bench::nurbs(args),
         },
     }
 }

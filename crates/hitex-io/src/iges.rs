@@ -82,7 +82,10 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
             continue;
         }
         let Some(section) = line.get(72..73) else {
-            return Err(err(format!("line {}", i + 1), format!("{} characters; IGES lines have 80 with the section letter in column 73", line.len())));
+            return Err(err(
+                format!("line {}", i + 1),
+                format!("{} characters; IGES lines have 80 with the section letter in column 73", line.len()),
+            ));
         };
         match section {
             "S" => {}
@@ -90,7 +93,9 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
             "D" => dir_lines.push((i + 1, line)),
             "P" => par_lines.push((i + 1, line)),
             "T" => terminate = Some(line),
-            other => return Err(err(format!("line {}", i + 1), format!("unknown section letter '{other}' in column 73"))),
+            other => {
+                return Err(err(format!("line {}", i + 1), format!("unknown section letter '{other}' in column 73")));
+            }
         }
     }
     if dir_lines.is_empty() {
@@ -100,7 +105,7 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
     let (pdelim, rdelim) = delimiters(&global, &mut model.repairs);
 
     // directory entries: pairs of lines
-    if dir_lines.len() % 2 != 0 {
+    if !dir_lines.len().is_multiple_of(2) {
         model.repairs.push(format!("odd number of directory lines ({}): the last one is ignored", dir_lines.len()));
     }
     let field = |l: &str, k: usize| -> Option<i64> { l.get(8 * k..8 * k + 8).and_then(|s| s.trim().parse().ok()) };
@@ -108,11 +113,22 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
     for (k, pair) in dir_lines.chunks_exact(2).enumerate() {
         let (ln, a) = pair[0];
         let b = pair[1].1;
-        let entity = field(a, 0).ok_or_else(|| err(format!("directory entry {} (line {ln})", k + 1), "entity type is not a number".into()))?;
+        let entity = field(a, 0).ok_or_else(|| {
+            err(format!("directory entry {} (line {ln})", k + 1), "entity type is not a number".into())
+        })?;
         if field(b, 0).is_some_and(|t| t != entity) {
-            model.repairs.push(format!("directory entry {}: second line names entity {} instead of {entity}", k + 1, field(b, 0).unwrap_or(0)));
+            model.repairs.push(format!(
+                "directory entry {}: second line names entity {} instead of {entity}",
+                k + 1,
+                field(b, 0).unwrap_or(0)
+            ));
         }
-        dirs.push(DirEntry { entity, param_ptr: field(a, 1).unwrap_or(0), param_lines: field(b, 3).unwrap_or(0), line: ln });
+        dirs.push(DirEntry {
+            entity,
+            param_ptr: field(a, 1).unwrap_or(0),
+            param_lines: field(b, 3).unwrap_or(0),
+            line: ln,
+        });
         let seq_a: Option<i64> = a.get(73..80).and_then(|s| s.trim().parse().ok());
         if seq_a != Some(2 * k as i64 + 1) && !model.repairs.iter().any(|r| r.starts_with("directory sequence")) {
             model.repairs.push(format!(
@@ -155,10 +171,18 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
         records.push((start_line, current));
     }
     if !seq_ok {
-        model.repairs.push("parameter sequence numbers are not 1, 2, 3, …: records are matched to directory entries in file order".into());
+        model.repairs.push(
+            "parameter sequence numbers are not 1, 2, 3, …: records are matched to directory entries in file order"
+                .into(),
+        );
     }
     if records.len() != dirs.len() {
-        model.repairs.push(format!("{} directory entries but {} parameter records: the first {} are paired", dirs.len(), records.len(), dirs.len().min(records.len())));
+        model.repairs.push(format!(
+            "{} directory entries but {} parameter records: the first {} are paired",
+            dirs.len(),
+            records.len(),
+            dirs.len().min(records.len())
+        ));
     }
     if let Some(t) = terminate {
         let count = |tag: char| -> Option<usize> {
@@ -175,7 +199,22 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
             ));
         }
     }
-    let _ = dirs.iter().map(|d| (d.param_ptr, d.param_lines)).count();
+    // directory pointers: P line where each record starts (1-based), and its length in lines
+    let line_index: std::collections::HashMap<usize, usize> =
+        par_lines.iter().enumerate().map(|(k, (ln, _))| (*ln, k + 1)).collect();
+    let mut wrong = Vec::new();
+    for (k, (d, (start, _))) in dirs.iter().zip(&records).enumerate() {
+        let actual = line_index.get(start).copied().unwrap_or(0) as i64;
+        if d.param_ptr != actual || d.param_lines <= 0 {
+            wrong.push((k + 1, d.param_ptr, actual));
+        }
+    }
+    if let Some((k, ptr, actual)) = wrong.first() {
+        model.repairs.push(format!(
+            "{} directory entries point at the wrong parameter lines (first: entry {k} → P {ptr}, its record starts at P {actual}): records taken in file order",
+            wrong.len()
+        ));
+    }
 
     // entities
     let mut skipped: std::collections::BTreeMap<i64, usize> = std::collections::BTreeMap::new();
@@ -184,7 +223,14 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
         let fields: Vec<&str> = rec.split(pdelim).map(str::trim).collect();
         let ty: Option<i64> = fields.first().and_then(|f| f.parse().ok());
         if ty != Some(d.entity) {
-            return Err(err(loc, format!("parameter record starts with {:?}, the directory says entity {}", fields.first().unwrap_or(&""), d.entity)));
+            return Err(err(
+                loc,
+                format!(
+                    "parameter record starts with {:?}, the directory says entity {}",
+                    fields.first().unwrap_or(&""),
+                    d.entity
+                ),
+            ));
         }
         match d.entity {
             128 => {
@@ -266,7 +312,10 @@ fn parse_128(f: &[&str]) -> Result<(NurbsSurface, Range), String> {
     let (na, nb) = (nu + m1 as u64 + 1, nv + m2 as u64 + 1);
     let need = 9u64 + na + nb + nu * nv * 4 + 4;
     if need > f.len() as u64 {
-        return Err(format!("declares {nu}×{nv} control points of degree {m1}×{m2}, which needs {need} fields, but the record has {}", f.len()));
+        return Err(format!(
+            "declares {nu}×{nv} control points of degree {m1}×{m2}, which needs {need} fields, but the record has {}",
+            f.len()
+        ));
     }
     let (nu, nv, na, nb) = (nu as usize, nv as usize, na as usize, nb as usize);
     let real = |i: usize, what: &str| -> Result<f64, String> {
@@ -290,12 +339,13 @@ fn parse_128(f: &[&str]) -> Result<(NurbsSurface, Range), String> {
     }
     at += nu * nv;
     let mut points = Vec::with_capacity(nu * nv);
-    for i in 0..nu * nv {
+    for (i, w) in weights.iter().enumerate() {
         let c = [real(at + 3 * i, "x")?, real(at + 3 * i + 1, "y")?, real(at + 3 * i + 2, "z")?];
-        points.push([c[0], c[1], c[2], weights[i]]);
+        points.push([c[0], c[1], c[2], *w]);
     }
     at += 3 * nu * nv;
-    let surface = NurbsSurface::new(m1 as usize, m2 as usize, nu, nv, knots_u, knots_v, points).map_err(|e| e.to_string())?;
+    let surface =
+        NurbsSurface::new(m1 as usize, m2 as usize, nu, nv, knots_u, knots_v, points).map_err(|e| e.to_string())?;
     let ((a0, a1), (b0, b1)) = surface.domain();
     let u0 = real(at, "U0").unwrap_or(a0).clamp(a0, a1);
     let u1 = real(at + 1, "U1").unwrap_or(a1).clamp(a0, a1);
@@ -329,7 +379,8 @@ mod tests {
         s
     }
 
-    const BILINEAR: &str = "128,1,1,1,1,0,0,1,0,0,0.,0.,1.,1.,0.,0.,1.,1.,1.,1.,1.,1.,0.,0.,0.,1.,0.,0.,0.,1.,0.,1.,1.,1.,0.,1.,0.,1.;";
+    const BILINEAR: &str =
+        "128,1,1,1,1,0,0,1,0,0,0.,0.,1.,1.,0.,0.,1.,1.,1.,1.,1.,1.,0.,0.,0.,1.,0.,0.,0.,1.,0.,1.,1.,1.,0.,1.,0.,1.;";
 
     #[test]
     fn tiny_file_reads_without_repairs() {
@@ -339,7 +390,7 @@ mod tests {
         let s = &m.surfaces[0].surface;
         assert_eq!((s.degree_u, s.degree_v, s.count_u, s.count_v), (1, 1, 2, 2));
         let p = s.point(0.5, 0.5);
-        assert!((p[0] - 0.5).abs() < 1e-12 && (p[1] - 0.5).abs() < 1e-12 && (p[2] - 0.5).abs() < 1e-12);
+        assert!((p[0] - 0.5).abs() < 1e-12 && (p[1] - 0.5).abs() < 1e-12 && (p[2] - 0.25).abs() < 1e-12, "{p:?}");
     }
 
     #[test]
@@ -347,9 +398,18 @@ mod tests {
         let cases = [
             ("128,1,1,1,1,0,0,1,0,0,0.,0.,1.,1.;", "needs"),
             ("128,1,1,0,1,0,0,1,0,0,0.,1.,0.,0.,1.,1.;", "M1"),
-            ("128,1,1,1,1,0,0,1,0,0,0.,0.,1.,1.,0.,0.,1.,1.,1.,-1.,1.,1.,0.,0.,0.,1.,0.,0.,0.,1.,0.,1.,1.,1.,0.,1.,0.,1.;", "weight"),
-            ("128,1,1,1,1,0,0,1,0,0,0.,1.,0.5,1.,0.,0.,1.,1.,1.,1.,1.,1.,0.,0.,0.,1.,0.,0.,0.,1.,0.,1.,1.,1.,0.,1.,0.,1.;", "knot"),
-            ("128,1,1,1,1,0,0,1,0,0,0.,0.,1.,1.,0.,0.,1.,1.,1.,1.,1.,1.,0.,zz,0.,1.,0.,0.,0.,1.,0.,1.,1.,1.,0.,1.,0.,1.;", "'zz'"),
+            (
+                "128,1,1,1,1,0,0,1,0,0,0.,0.,1.,1.,0.,0.,1.,1.,1.,-1.,1.,1.,0.,0.,0.,1.,0.,0.,0.,1.,0.,1.,1.,1.,0.,1.,0.,1.;",
+                "weight",
+            ),
+            (
+                "128,1,1,1,1,0,0,1,0,0,0.,1.,0.5,1.,0.,0.,1.,1.,1.,1.,1.,1.,0.,0.,0.,1.,0.,0.,0.,1.,0.,1.,1.,1.,0.,1.,0.,1.;",
+                "knot",
+            ),
+            (
+                "128,1,1,1,1,0,0,1,0,0,0.,0.,1.,1.,0.,0.,1.,1.,1.,1.,1.,1.,0.,zz,0.,1.,0.,0.,0.,1.,0.,1.,1.,1.,0.,1.,0.,1.;",
+                "'zz'",
+            ),
             ("128,999999,999999,3,3,0,0,1,0,0,0.;", "needs"),
             ("126,1,1;", "directory says entity 128"),
         ];
@@ -367,7 +427,8 @@ mod tests {
     #[test]
     fn teapot_reads_with_repairs_and_matches_reference_samples() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/nurbs/teapot.igs");
-        let refs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/nurbs/teapot_reference_samples.jsonl");
+        let refs =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/nurbs/teapot_reference_samples.jsonl");
         let path = if path.exists() { path } else { Path::new(env!("CARGO_MANIFEST_DIR")).join("data/teapot.igs") };
         let m = load_iges(&path).unwrap();
         assert_eq!(m.surfaces.len(), 32);

@@ -8,6 +8,7 @@
 
 pub mod iges;
 pub mod image_io;
+pub mod models;
 pub mod obj;
 pub mod scene_file;
 

@@ -7,6 +7,9 @@ use glam::{Mat4, Vec3};
 use hitex_core::nurbs::NurbsSurface;
 use hitex_core::scene::Camera;
 
+/// A patch's parameter range `((u0, u1), (v0, v1))`.
+pub type ParamRange = ((f64, f64), (f64, f64));
+
 /// What the NURBS fragment program shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum NurbsMode {
@@ -153,8 +156,8 @@ pub struct PreparedNurbs {
     pub bands: u32,
     /// Zebra stripes over 180°.
     pub stripes: u32,
-    /// Curvature range mapped to the colour ramp (symmetric about 0).
-    pub curvature_range: f32,
+    /// Curvature mapped to full colour on the ramp: [Gaussian, mean].
+    pub curvature_range: [f32; 2],
     /// Linear background.
     pub background: Vec3,
     id: u64,
@@ -165,7 +168,7 @@ static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new
 impl PreparedNurbs {
     /// Tessellates every patch over its parameter range into a
     /// `density`×`density` grid and frames the model with a camera.
-    pub fn new(surfaces: Vec<NurbsSurface>, ranges: &[((f64, f64), (f64, f64))], density: u32) -> Self {
+    pub fn new(surfaces: Vec<NurbsSurface>, ranges: &[ParamRange], density: u32) -> Self {
         let density = density.clamp(1, 256);
         let mut vertices = Vec::new();
         let mut indices = Vec::new();
@@ -200,10 +203,11 @@ impl PreparedNurbs {
                 }
             }
         }
-        let center = Vec3::new(((lo[0] + hi[0]) / 2.0) as f32, ((lo[1] + hi[1]) / 2.0) as f32, ((lo[2] + hi[2]) / 2.0) as f32);
+        let center =
+            Vec3::new(((lo[0] + hi[0]) / 2.0) as f32, ((lo[1] + hi[1]) / 2.0) as f32, ((lo[2] + hi[2]) / 2.0) as f32);
         let radius = (0..3).map(|t| (hi[t] - lo[t]) / 2.0).map(|x| x * x).sum::<f64>().sqrt().max(1e-6) as f32;
         let fov = 35.0f32;
-        let dist = radius / (fov.to_radians() / 2.0).sin() * 1.02;
+        let dist = radius / (fov.to_radians() / 2.0).sin() * 0.95;
         let dir = Vec3::new(0.85, -1.5, 0.75).normalize();
         let camera = Camera {
             position: center + dir * dist,
@@ -214,18 +218,27 @@ impl PreparedNurbs {
             far: dist + radius * 1.5,
         };
         let packed = PackedNurbs::new(&surfaces);
-        // curvature range: the 95th percentile of |K| at the vertices (gauss)
-        let mut ks: Vec<f64> = surfaces
-            .iter()
-            .flat_map(|s| {
-                let ((u0, u1), (v0, v1)) = s.domain();
-                (0..25).map(move |k| (u0 + (u1 - u0) * ((k % 5) as f64 + 0.5) / 5.0, v0 + (v1 - v0) * ((k / 5) as f64 + 0.5) / 5.0))
-                    .map(move |(u, v)| s.curvature(u, v).mean.abs())
-            })
-            .filter(|x| x.is_finite())
-            .collect();
-        ks.sort_by(|a, b| a.total_cmp(b));
-        let curvature_range = ks.get(ks.len() * 95 / 100).copied().unwrap_or(1.0).max(1e-9) as f32;
+        // curvature ranges: twice the 75th percentile of |K| and |H| over a
+        // 6×6 sample grid per patch (robust against small, sharply curved parts)
+        let mut ks = Vec::new();
+        let mut hs = Vec::new();
+        for s in &surfaces {
+            let ((u0, u1), (v0, v1)) = s.domain();
+            for k in 0..36 {
+                let u = u0 + (u1 - u0) * ((k % 6) as f64 + 0.5) / 6.0;
+                let v = v0 + (v1 - v0) * ((k / 6) as f64 + 0.5) / 6.0;
+                let c = s.curvature(u, v);
+                if c.gaussian.is_finite() && c.mean.is_finite() {
+                    ks.push(c.gaussian.abs());
+                    hs.push(c.mean.abs());
+                }
+            }
+        }
+        let pick = |mut v: Vec<f64>| -> f32 {
+            v.sort_by(|a, b| a.total_cmp(b));
+            (2.0 * v.get(v.len() * 3 / 4).copied().unwrap_or(0.5)).max(1e-12) as f32
+        };
+        let curvature_range = [pick(ks), pick(hs)];
         Self {
             surfaces,
             vertices,
@@ -254,8 +267,8 @@ impl PreparedNurbs {
         let right = view_dir.cross(camera.up).normalize_or_zero();
         let light = (-view_dir + right * 0.4 + camera.up.normalize() * 0.6).normalize();
         let range = match self.mode {
-            NurbsMode::Gauss => self.curvature_range * self.curvature_range,
-            _ => self.curvature_range,
+            NurbsMode::Gauss => self.curvature_range[0],
+            _ => self.curvature_range[1],
         };
         NurbsFrame {
             view_proj: vp.to_cols_array_2d(),

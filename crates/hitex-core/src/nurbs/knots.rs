@@ -7,7 +7,10 @@ use super::{NurbsError, Real};
 /// range `[U[p], U[count]]`.
 pub fn validate_knots(dir: &'static str, knots: &[f64], count: usize, p: usize) -> Result<(), NurbsError> {
     if count < p + 1 {
-        return Err(NurbsError::Counts { dir, message: format!("{count} control points cannot carry degree {p} (need ≥ {})", p + 1) });
+        return Err(NurbsError::Counts {
+            dir,
+            message: format!("{count} control points cannot carry degree {p} (need ≥ {})", p + 1),
+        });
     }
     if knots.len() != count + p + 1 {
         return Err(NurbsError::Counts {
@@ -19,10 +22,16 @@ pub fn validate_knots(dir: &'static str, knots: &[f64], count: usize, p: usize) 
         return Err(NurbsError::Knots { dir, message: format!("knot {i} is not finite ({})", knots[i]) });
     }
     if let Some(i) = knots.windows(2).position(|w| w[1] < w[0]) {
-        return Err(NurbsError::Knots { dir, message: format!("knot {} ({}) is less than knot {i} ({})", i + 1, knots[i + 1], knots[i]) });
+        return Err(NurbsError::Knots {
+            dir,
+            message: format!("knot {} ({}) is less than knot {i} ({})", i + 1, knots[i + 1], knots[i]),
+        });
     }
     if knots[count] <= knots[p] {
-        return Err(NurbsError::Knots { dir, message: format!("empty parameter range [{}, {}]", knots[p], knots[count]) });
+        return Err(NurbsError::Knots {
+            dir,
+            message: format!("empty parameter range [{}, {}]", knots[p], knots[count]),
+        });
     }
     Ok(())
 }
@@ -50,7 +59,11 @@ pub fn find_span<T: Real>(n: usize, p: usize, u: T, knots: &[T]) -> usize {
     let (mut low, mut high) = (p, n + 1);
     let mut mid = (low + high) / 2;
     while u < knots[mid] || u >= knots[mid + 1] {
-        if u < knots[mid] { high = mid } else { low = mid }
+        if u < knots[mid] {
+            high = mid
+        } else {
+            low = mid
+        }
         mid = (low + high) / 2;
     }
     mid

@@ -6,6 +6,10 @@
 //! The math is generic over [`Real`] so that the f64 reference and the f32
 //! path the fragment programs mirror share one text.
 
+// The kernels follow the book's index arithmetic on purpose (spans, triangles
+// of basis values): index loops read closer to the algorithms than iterators.
+#![allow(clippy::needless_range_loop)]
+
 pub mod basis;
 pub mod elevate;
 pub mod knots;

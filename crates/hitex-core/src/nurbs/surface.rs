@@ -169,15 +169,17 @@ pub fn normal_f64(d: &SurfaceDerivs<f64>, toward_u: f64, toward_v: f64) -> Optio
     // collapsed row: ∂S/∂u ≡ 0 along the edge, S_u ≈ S_uv·Δv
     let small_u = norm(su) <= 1e-8 * scale_len;
     let small_v = norm(sv) <= 1e-8 * scale_len;
-    if small_u && !small_v {
-        if let Some(n) = unit(scale(cross(suv, sv), toward_v)) {
-            return Some(n);
-        }
+    if small_u
+        && !small_v
+        && let Some(n) = unit(scale(cross(suv, sv), toward_v))
+    {
+        return Some(n);
     }
-    if small_v && !small_u {
-        if let Some(n) = unit(scale(cross(su, suv), toward_u)) {
-            return Some(n);
-        }
+    if small_v
+        && !small_u
+        && let Some(n) = unit(scale(cross(su, suv), toward_u))
+    {
+        return Some(n);
     }
     // both vanish (apex): second-order terms along the diagonal
     let a = [su[0] + suu[0] * toward_u * 1e-3, su[1] + suu[1] * toward_u * 1e-3, su[2] + suu[2] * toward_u * 1e-3];
@@ -244,7 +246,18 @@ impl NurbsSurface {
         let ((u0, u1), (v0, v1)) = self.domain();
         let (u, v) = (clamp_nan(u, u0, u1), clamp_nan(v, v0, v1));
         let pw = self.homogeneous();
-        rational_derivs(self.degree_u, self.degree_v, self.count_u, self.count_v, &self.knots_u, &self.knots_v, &pw, u, v, order)
+        rational_derivs(
+            self.degree_u,
+            self.degree_v,
+            self.count_u,
+            self.count_v,
+            &self.knots_u,
+            &self.knots_v,
+            &pw,
+            u,
+            v,
+            order,
+        )
     }
 
     /// The surface point.
@@ -365,7 +378,8 @@ mod tests {
             pts.push([r, r, z, w]);
             pts.push([0.0, r, z, 1.0]);
         }
-        let s = NurbsSurface::new(2, 1, 3, 2, vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0], vec![0.0, 0.0, 1.0, 1.0], pts).unwrap();
+        let s =
+            NurbsSurface::new(2, 1, 3, 2, vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0], vec![0.0, 0.0, 1.0, 1.0], pts).unwrap();
         for i in 0..=10 {
             let u = i as f64 / 10.0;
             let n = s.normal(u, 0.0);

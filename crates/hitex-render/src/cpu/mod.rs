@@ -5,6 +5,7 @@
 //! twin in `shaders/`) shades a whole quad so that screen-space derivatives
 //! are lane differences, as on a GPU.
 
+pub mod nurbs;
 pub mod raster;
 pub mod textured;
 
@@ -39,6 +40,36 @@ impl CpuRenderer {
         let positions: Vec<glam::Vec3> = scene.vertices.iter().map(|v| glam::Vec3::from_array(v.position)).collect();
         let view_proj = glam::Mat4::from_cols_array_2d(&frame.view_proj);
         raster::rasterize(&mut target, view_proj, &positions, &varyings, &scene.indices, &scene.draws, &program);
+        Ok(Frame { width, height, rgba: target.into_rgba() })
+    }
+}
+
+impl CpuRenderer {
+    /// Renders a NURBS model seen by `camera`: the tessellation generates
+    /// fragments, `cpu/nurbs.rs` evaluates each one exactly.
+    pub fn render_nurbs(
+        &self,
+        scene: &crate::nurbs::PreparedNurbs,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+    ) -> Result<Frame, RenderError> {
+        check_size(width, height)?;
+        let frame = scene.frame(camera, width, height);
+        let program = nurbs::NurbsProgram::new(&frame, &scene.packed);
+        let bg = glam::Vec3::from_array([frame.background[0], frame.background[1], frame.background[2]]);
+        let clear = [
+            hitex_core::texture::linear_to_srgb_u8(bg.x),
+            hitex_core::texture::linear_to_srgb_u8(bg.y),
+            hitex_core::texture::linear_to_srgb_u8(bg.z),
+            255,
+        ];
+        let mut target = raster::Target::new(width, height, clear);
+        let varyings: Vec<[f32; nurbs::VARYINGS]> = scene.vertices.iter().map(nurbs::varyings).collect();
+        let positions: Vec<glam::Vec3> = scene.vertices.iter().map(|v| glam::Vec3::from_array(v.position)).collect();
+        let draws = [crate::prepare::Draw { first_index: 0, index_count: scene.indices.len() as u32, material: 0 }];
+        let view_proj = glam::Mat4::from_cols_array_2d(&frame.view_proj);
+        raster::rasterize(&mut target, view_proj, &positions, &varyings, &scene.indices, &draws, &program);
         Ok(Frame { width, height, rgba: target.into_rgba() })
     }
 }

@@ -41,7 +41,14 @@ pub trait QuadShader<const K: usize>: Sync {
 
     /// Shades the quad and returns each lane's depth in [0, 1] as well.
     /// Programs that set [`QuadShader::WRITES_DEPTH`] implement it.
-    fn shade_depth(&self, material: usize, v: &[[f32; K]; 4], w: [f32; 4], live: u8, z: [f32; 4]) -> ([[u8; 4]; 4], [f32; 4]) {
+    fn shade_depth(
+        &self,
+        material: usize,
+        v: &[[f32; K]; 4],
+        w: [f32; 4],
+        live: u8,
+        z: [f32; 4],
+    ) -> ([[u8; 4]; 4], [f32; 4]) {
         (self.shade(material, v, w, live), z)
     }
 }

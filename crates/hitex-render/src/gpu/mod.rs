@@ -2,6 +2,7 @@
 //! Runs `shaders/textured.wgsl`, the twin of `cpu/textured.rs`.
 
 pub mod device;
+mod nurbs;
 
 pub use device::{GpuContext, adapters_report};
 
@@ -28,6 +29,23 @@ pub enum GpuError {
     /// The output could not be read back.
     #[error("GPU readback failed: {0}")]
     Readback(String),
+}
+
+/// Creates a shader module from WGSL without naga's injected bounds checks.
+///
+/// # Safety
+/// Every index the shader computes must be in range by construction (the
+/// shaders of hitex wrap or clamp every texel, level and array index).
+pub(crate) unsafe fn trusted_module(device: &wgpu::Device, label: &str, source: &str) -> wgpu::ShaderModule {
+    let mut checks = wgpu::ShaderRuntimeChecks::checked();
+    checks.bounds_checks = false;
+    // SAFETY: forwarded to the caller
+    unsafe {
+        device.create_shader_module_trusted(
+            wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(source.into()) },
+            checks,
+        )
+    }
 }
 
 /// The textured-mesh shader source.
@@ -60,6 +78,7 @@ pub struct GpuRenderer {
     frame_group: wgpu::BindGroup,
     uploaded: Option<Uploaded>,
     target: Option<TargetSet>,
+    nurbs: Option<nurbs::NurbsGpu>,
 }
 
 impl GpuRenderer {
@@ -75,23 +94,10 @@ impl GpuRenderer {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         // Bounds checks are ours, not naga's: every texel index goes through
         // wrap_index() against the level size, every level through the clamp of
-        // λ to [0, level_count − 1], and the light loop stops at min(count, 8).
-        // naga's injected checks query textureSize(level) per texel load, which
-        // llvmpipe answers for one level per SIMD group (black texels where
-        // neighbouring pixels pick different levels on GL), and they cost time.
-        let mut checks = wgpu::ShaderRuntimeChecks::checked();
-        checks.bounds_checks = false;
-        // SAFETY: the shader indexes only in-range texels, levels and array
-        // elements (see above); loop bounding and division checks stay on.
-        let module = unsafe {
-            device.create_shader_module_trusted(
-                wgpu::ShaderModuleDescriptor {
-                    label: Some("textured.wgsl"),
-                    source: wgpu::ShaderSource::Wgsl(TEXTURED_WGSL.into()),
-                },
-                checks,
-            )
-        };
+        // λ to [0, level_count − 1], and the light loop stops at min(count, 8);
+        // naga's injected checks would cost time on every texel load.
+        // SAFETY: the shader indexes only in-range texels, levels and array elements.
+        let module = unsafe { trusted_module(device, "textured.wgsl", TEXTURED_WGSL) };
         let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("frame"),
             entries: &[wgpu::BindGroupLayoutEntry {
@@ -194,6 +200,7 @@ impl GpuRenderer {
             frame_group,
             uploaded: None,
             target: None,
+            nurbs: None,
         })
     }
 
@@ -355,6 +362,27 @@ impl GpuRenderer {
         width: u32,
         height: u32,
     ) -> Result<Frame, RenderError> {
+        self.check_output(width, height)?;
+        self.upload(scene)?;
+        self.ensure_target(width, height);
+        let frame = scene.frame_uniform(camera, width, height);
+        self.ctx.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&frame));
+        let Some(up) = self.uploaded.as_ref() else {
+            return Err(RenderError::Gpu(GpuError::Render("resources missing after upload".into())));
+        };
+        self.pass_and_read(width, height, background_rgba8(&frame), |pass| {
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.frame_group, &[]);
+            pass.set_vertex_buffer(0, up.vertices.slice(..));
+            pass.set_index_buffer(up.indices.slice(..), wgpu::IndexFormat::Uint32);
+            for d in &scene.draws {
+                pass.set_bind_group(1, &up.material_groups[d.material], &[]);
+                pass.draw_indexed(d.first_index..d.first_index + d.index_count, 0, 0..1);
+            }
+        })
+    }
+
+    fn check_output(&self, width: u32, height: u32) -> Result<(), RenderError> {
         check_size(width, height)?;
         let max = self.ctx.device.limits().max_texture_dimension_2d;
         if width > max || height > max {
@@ -362,24 +390,30 @@ impl GpuRenderer {
                 "{width}x{height} exceeds the adapter's limit of {max} pixels per side"
             )));
         }
-        self.upload(scene)?;
-        self.ensure_target(width, height);
-        let (Some(up), Some(tg)) = (self.uploaded.as_ref(), self.target.as_ref()) else {
-            return Err(RenderError::Gpu(GpuError::Render("resources missing after upload".into())));
+        Ok(())
+    }
+
+    /// Clears the target to `bg`, records one render pass with `draw`, copies
+    /// the colour target out and reads it back; wgpu errors become [`GpuError`].
+    fn pass_and_read(
+        &self,
+        width: u32,
+        height: u32,
+        bg: [u8; 4],
+        draw: impl FnOnce(&mut wgpu::RenderPass<'_>),
+    ) -> Result<Frame, RenderError> {
+        let Some(tg) = self.target.as_ref() else {
+            return Err(RenderError::Gpu(GpuError::Render("render target missing".into())));
         };
         let device = &self.ctx.device;
-        let queue = &self.ctx.queue;
         let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let frame = scene.frame_uniform(camera, width, height);
-        queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&frame));
-        let bg = background_rgba8(&frame);
         let color_view = tg.color.create_view(&Default::default());
         let depth_view = tg.depth.create_view(&Default::default());
         let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
         {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("textured"),
+                label: Some("frame"),
                 color_attachments: &[Some(wgpu::RenderPassColorAttachment {
                     view: &color_view,
                     depth_slice: None,
@@ -403,14 +437,7 @@ impl GpuRenderer {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &self.frame_group, &[]);
-            pass.set_vertex_buffer(0, up.vertices.slice(..));
-            pass.set_index_buffer(up.indices.slice(..), wgpu::IndexFormat::Uint32);
-            for d in &scene.draws {
-                pass.set_bind_group(1, &up.material_groups[d.material], &[]);
-                pass.draw_indexed(d.first_index..d.first_index + d.index_count, 0, 0..1);
-            }
+            draw(&mut pass);
         }
         enc.copy_texture_to_buffer(
             wgpu::TexelCopyTextureInfo {
@@ -429,7 +456,7 @@ impl GpuRenderer {
             },
             wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
         );
-        queue.submit([enc.finish()]);
+        self.ctx.queue.submit([enc.finish()]);
         if let Some(e) = pollster::block_on(oom.pop()) {
             return Err(GpuError::Render(e.to_string()).into());
         }

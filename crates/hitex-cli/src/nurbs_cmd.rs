@@ -1,0 +1,237 @@
+//! `hitex nurbs …`: exact per-pixel NURBS surfaces.
+
+use crate::{AnyRenderer, Backend, CliError, parse_size, save};
+use clap::{Args, Subcommand, ValueEnum};
+use hitex_io::models::{NurbsModel, load_model};
+use hitex_render::nurbs::{NurbsMode, PreparedNurbs};
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// `hitex nurbs` subcommands.
+#[derive(Subcommand)]
+pub enum NurbsCommand {
+    /// Render a model (`surface`, `teapot`) or an IGES file.
+    Render(RenderArgs),
+    /// Patches, degrees, counts, bounds, and what the reader repaired.
+    Info {
+        /// Model name or IGES file.
+        model: String,
+    },
+    /// Point, partials, normal and curvatures at a parameter.
+    Eval {
+        /// Model name or IGES file.
+        model: String,
+        /// Patch index (0-based, file order).
+        #[arg(long, default_value_t = 0)]
+        patch: usize,
+        /// Parameters U,V.
+        #[arg(long, value_parser = parse_uv)]
+        uv: (f64, f64),
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// Display modes on the command line.
+#[derive(Clone, Copy, ValueEnum, Debug, PartialEq, Eq)]
+pub enum ModeArg {
+    /// Lit surface.
+    Shaded,
+    /// Isophote bands.
+    Isophote,
+    /// Reflection lines.
+    Zebra,
+    /// Gaussian curvature.
+    Gauss,
+    /// Mean curvature.
+    Mean,
+    /// Isophotes of interpolated vertex normals (the paper's Fig. 4 comparison).
+    VertexNormals,
+    /// Normals as RGB.
+    Normal,
+}
+
+impl From<ModeArg> for NurbsMode {
+    fn from(m: ModeArg) -> Self {
+        match m {
+            ModeArg::Shaded => NurbsMode::Shaded,
+            ModeArg::Isophote => NurbsMode::Isophote,
+            ModeArg::Zebra => NurbsMode::Zebra,
+            ModeArg::Gauss => NurbsMode::Gauss,
+            ModeArg::Mean => NurbsMode::Mean,
+            ModeArg::VertexNormals => NurbsMode::VertexNormals,
+            ModeArg::Normal => NurbsMode::Normal,
+        }
+    }
+}
+
+/// Arguments of `hitex nurbs render`.
+#[derive(Args)]
+pub struct RenderArgs {
+    /// Model name (`surface`, `teapot`) or IGES file.
+    pub model: String,
+    /// Display mode.
+    #[arg(long, value_enum, default_value_t = ModeArg::Shaded)]
+    pub mode: ModeArg,
+    /// Output PNG.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Output size, WIDTHxHEIGHT.
+    #[arg(long, value_parser = parse_size, default_value = "512x512")]
+    pub size: (u32, u32),
+    /// Which renderer to use.
+    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    pub backend: Backend,
+    /// Tessellation density per patch side (only places fragments).
+    #[arg(long, default_value_t = 8)]
+    pub density: u32,
+    /// Isophote bands over 180°.
+    #[arg(long, default_value_t = 12)]
+    pub bands: u32,
+    /// Zebra stripes over 180°.
+    #[arg(long, default_value_t = 10)]
+    pub stripes: u32,
+    /// Curvature mapped to full colour (default: from the model).
+    #[arg(long)]
+    pub range: Option<f32>,
+    /// Turn the camera about the model's vertical axis, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub turn: f32,
+}
+
+fn parse_uv(s: &str) -> Result<(f64, f64), String> {
+    let (a, b) = s.split_once(',').ok_or_else(|| format!("'{s}' is not U,V"))?;
+    let u: f64 = a.trim().parse().map_err(|_| format!("'{a}' is not a number"))?;
+    let v: f64 = b.trim().parse().map_err(|_| format!("'{b}' is not a number"))?;
+    if !(u.is_finite() && v.is_finite()) {
+        return Err("U and V must be finite".into());
+    }
+    Ok((u, v))
+}
+
+/// Prepares a model for rendering.
+pub fn prepare(model: &NurbsModel, density: u32) -> PreparedNurbs {
+    PreparedNurbs::new(model.nurbs(), &model.ranges(), density)
+}
+
+/// Runs a `hitex nurbs` subcommand.
+pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
+    match cmd {
+        NurbsCommand::Render(a) => {
+            if a.bands == 0 || a.stripes == 0 || a.bands > 1000 || a.stripes > 1000 {
+                return Err(CliError::Input("--bands and --stripes must be in 1..=1000".into()));
+            }
+            if !a.turn.is_finite() || a.range.is_some_and(|r| !(r.is_finite() && r > 0.0)) {
+                return Err(CliError::Input("--turn must be finite and --range finite and positive".into()));
+            }
+            let model = load_model(&a.model)?;
+            let mut p = prepare(&model, a.density);
+            p.mode = a.mode.into();
+            p.bands = a.bands;
+            p.stripes = a.stripes;
+            if let Some(r) = a.range {
+                let slot = if p.mode == NurbsMode::Gauss { 0 } else { 1 };
+                p.curvature_range[slot] = r;
+            }
+            let cam = p.camera.orbit(a.turn.to_radians());
+            let mut r = AnyRenderer::open(a.backend.into())?;
+            let t = Instant::now();
+            let f = r.render_nurbs(&p, &cam, a.size.0, a.size.1)?;
+            let ms = t.elapsed().as_secs_f64() * 1e3;
+            save(&f, &a.output)?;
+            println!(
+                "wrote {} ({}x{}, {} patches, mode {:?}, {}) in {ms:.1} ms",
+                a.output.display(),
+                a.size.0,
+                a.size.1,
+                p.patch_count(),
+                a.mode,
+                r.name()
+            );
+            if matches!(p.mode, NurbsMode::Gauss | NurbsMode::Mean) {
+                let range = if p.mode == NurbsMode::Gauss { p.curvature_range[0] } else { p.curvature_range[1] };
+                println!(
+                    "colour ramp: blue −{range:.4} … white 0 … red +{range:.4} (1/length{})",
+                    if p.mode == NurbsMode::Gauss { "²" } else { "" }
+                );
+            }
+            Ok(())
+        }
+        NurbsCommand::Info { model } => {
+            let m = load_model(&model)?;
+            println!("{}: {} patches", m.name, m.surfaces.len());
+            let mut degrees = std::collections::BTreeMap::new();
+            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+            for (k, s) in m.surfaces.iter().enumerate() {
+                let n = &s.surface;
+                *degrees.entry((n.degree_u, n.degree_v)).or_insert(0) += 1;
+                let (a, b) = n.bounds();
+                for t in 0..3 {
+                    lo[t] = lo[t].min(a[t]);
+                    hi[t] = hi[t].max(b[t]);
+                }
+                println!(
+                    "  patch {k:>3}: degree {}×{}, {}×{} control points, {}×{} knots, {}, u {:?} v {:?}",
+                    n.degree_u,
+                    n.degree_v,
+                    n.count_u,
+                    n.count_v,
+                    n.knots_u.len(),
+                    n.knots_v.len(),
+                    if n.is_polynomial() { "polynomial" } else { "rational" },
+                    s.range.0,
+                    s.range.1
+                );
+            }
+            let d: Vec<String> = degrees.iter().map(|((p, q), c)| format!("{p}×{q}: {c}")).collect();
+            println!("degrees: {}", d.join(", "));
+            println!("bounds of the control nets: min {lo:?} max {hi:?}");
+            for w in &m.warnings {
+                println!("warning: {w}");
+            }
+            for r in &m.repairs {
+                println!("repaired: {r}");
+            }
+            Ok(())
+        }
+        NurbsCommand::Eval { model, patch, uv, json } => {
+            let m = load_model(&model)?;
+            let s = m.surfaces.get(patch).ok_or_else(|| {
+                CliError::Input(format!("{}: patch {patch} does not exist ({} patches)", m.name, m.surfaces.len()))
+            })?;
+            let ((u0, u1), (v0, v1)) = s.surface.domain();
+            if uv.0 < u0 || uv.0 > u1 || uv.1 < v0 || uv.1 > v1 {
+                return Err(CliError::Input(format!(
+                    "({}, {}) is outside the patch domain u [{u0}, {u1}] v [{v0}, {v1}]",
+                    uv.0, uv.1
+                )));
+            }
+            let d = s.surface.derivatives(uv.0, uv.1, 2);
+            let n = s.surface.normal(uv.0, uv.1);
+            let c = s.surface.curvature(uv.0, uv.1);
+            if json {
+                let v = serde_json::json!({
+                    "model": m.name, "patch": patch, "u": uv.0, "v": uv.1,
+                    "point": d.d[0][0], "du": d.d[1][0], "dv": d.d[0][1],
+                    "duu": d.d[2][0], "duv": d.d[1][1], "dvv": d.d[0][2],
+                    "normal": n, "gaussian": c.gaussian, "mean": c.mean, "principal": c.principal,
+                });
+                println!("{}", serde_json::to_string_pretty(&v).map_err(|e| CliError::Internal(e.to_string()))?);
+            } else {
+                println!("{} patch {patch} at (u, v) = ({}, {})", m.name, uv.0, uv.1);
+                println!("  point     {:?}", d.d[0][0]);
+                println!("  dS/du     {:?}", d.d[1][0]);
+                println!("  dS/dv     {:?}", d.d[0][1]);
+                println!("  d2S/du2   {:?}", d.d[2][0]);
+                println!("  d2S/dudv  {:?}", d.d[1][1]);
+                println!("  d2S/dv2   {:?}", d.d[0][2]);
+                println!("  normal    {n:?}");
+                println!("  gaussian  {:e}", c.gaussian);
+                println!("  mean      {:e}", c.mean);
+                println!("  principal {:e}, {:e}", c.principal[0], c.principal[1]);
+            }
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,335 @@
+// The NURBS fragment program. Twin of src/cpu/nurbs.rs (and of
+// hitex-core nurbs::{find_span, basis_ders_paper}): same packed inputs, same
+// steps in the same order; change both together.
+//
+// Textures as in the paper: u knots and v knots (one row per pid, texel 0 =
+// knot count), control points (one row per pid, texel 0 = (p, q, nu, nv),
+// then homogeneous (wx, wy, wz, w)). Any degree up to MAX_DEGREE, by loops.
+
+const MAX_DEGREE: i32 = 15;
+
+struct Frame {
+    view_proj: mat4x4<f32>,
+    camera: vec4<f32>,
+    light: vec4<f32>,
+    params: vec4<u32>, // mode, isophote bands, zebra stripes
+    ranges: vec4<f32>, // curvature range lo, hi; ambient
+    background: vec4<f32>,
+};
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var knots_u: texture_2d<f32>;
+@group(0) @binding(2) var knots_v: texture_2d<f32>;
+@group(0) @binding(3) var control: texture_2d<f32>;
+
+struct VsIn {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
+    @location(3) patch_id: f32,
+};
+
+struct VsOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) normal: vec3<f32>,
+    @location(1) u: f32,
+    @location(2) v: f32,
+    @location(3) patch_id: f32,
+};
+
+@vertex
+fn vs_main(i: VsIn) -> VsOut {
+    var o: VsOut;
+    o.clip = frame.view_proj * vec4<f32>(i.position, 1.0);
+    o.normal = i.normal;
+    o.u = i.uv.x;
+    o.v = i.uv.y;
+    o.patch_id = i.patch_id;
+    return o;
+}
+
+// ---- knots: dir 0 = u, 1 = v ----
+
+fn knot(dir: i32, pid: i32, i: i32) -> f32 {
+    if dir == 0 {
+        return textureLoad(knots_u, vec2<i32>(1 + i, pid), 0).x;
+    }
+    return textureLoad(knots_v, vec2<i32>(1 + i, pid), 0).x;
+}
+
+// find knot span (A2.1 with the end case m − p − 1)
+fn find_span(dir: i32, pid: i32, n: i32, p: i32, u: f32) -> i32 {
+    if u >= knot(dir, pid, n + 1) {
+        var s = n;
+        loop {
+            if s <= p || knot(dir, pid, s) < knot(dir, pid, s + 1) { break; }
+            s = s - 1;
+        }
+        return s;
+    }
+    if u <= knot(dir, pid, p) {
+        var s = p;
+        loop {
+            if s >= n || knot(dir, pid, s + 1) > knot(dir, pid, s) { break; }
+            s = s + 1;
+        }
+        return s;
+    }
+    var low = p;
+    var high = n + 1;
+    var mid = (low + high) / 2;
+    loop {
+        if u >= knot(dir, pid, mid) && u < knot(dir, pid, mid + 1) { break; }
+        if u < knot(dir, pid, mid) { high = mid; } else { low = mid; }
+        mid = (low + high) / 2;
+    }
+    return mid;
+}
+
+struct Basis {
+    n: array<f32, 16>,
+    d1: array<f32, 16>,
+    d2: array<f32, 16>,
+};
+
+// derivatives of degree deg from the row of degree deg − 1 (paper eq. 6)
+fn deriv(dir: i32, pid: i32, deg: i32, lower: array<f32, 16>, first: i32) -> array<f32, 16> {
+    var lo = lower;
+    var d: array<f32, 16>;
+    let fdeg = f32(deg);
+    for (var r = 0; r <= deg; r = r + 1) {
+        let i = first + r - 1;
+        var v = 0.0;
+        if r >= 1 {
+            let den = knot(dir, pid, i + deg) - knot(dir, pid, i);
+            if den > 0.0 { v = v + lo[r - 1] / den; }
+        }
+        if r < deg {
+            let den = knot(dir, pid, i + deg + 1) - knot(dir, pid, i + 1);
+            if den > 0.0 { v = v - lo[r] / den; }
+        }
+        d[r] = fdeg * v;
+    }
+    return d;
+}
+
+// basis functions and derivatives by the triangular scheme (A2.2 + eq. 6)
+fn basis(dir: i32, pid: i32, span: i32, u: f32, p: i32, second: bool) -> Basis {
+    var n: array<f32, 16>;
+    var left: array<f32, 16>;
+    var right: array<f32, 16>;
+    var row_p1: array<f32, 16>;
+    var row_p2: array<f32, 16>;
+    n[0] = 1.0;
+    if p == 1 { row_p1[0] = 1.0; }
+    if p == 2 { row_p2[0] = 1.0; }
+    for (var j = 1; j <= p; j = j + 1) {
+        left[j] = u - knot(dir, pid, span + 1 - j);
+        right[j] = knot(dir, pid, span + j) - u;
+        var saved = 0.0;
+        for (var r = 0; r < j; r = r + 1) {
+            let temp = n[r] / (right[r + 1] + left[j - r]);
+            n[r] = saved + right[r + 1] * temp;
+            saved = left[j - r] * temp;
+        }
+        n[j] = saved;
+        if j + 2 == p { row_p2 = n; }
+        if j + 1 == p { row_p1 = n; }
+    }
+    var b: Basis;
+    b.n = n;
+    b.d1 = deriv(dir, pid, p, row_p1, span + 1 - p);
+    if second && p >= 2 {
+        let d1 = deriv(dir, pid, p - 1, row_p2, span + 2 - p);
+        b.d2 = deriv(dir, pid, p, d1, span + 1 - p);
+    }
+    return b;
+}
+
+struct Eval {
+    s: vec3<f32>,
+    su: vec3<f32>,
+    sv: vec3<f32>,
+    suu: vec3<f32>,
+    suv: vec3<f32>,
+    svv: vec3<f32>,
+};
+
+fn eval_patch(pid: i32, u_in: f32, v_in: f32, second: bool) -> Eval {
+    // pid header
+    let head = textureLoad(control, vec2<i32>(0, pid), 0);
+    let p = i32(head.x);
+    let q = i32(head.y);
+    let nu = i32(head.z);
+    let nv = i32(head.w);
+    // clamp into the domain
+    let u = min(max(u_in, knot(0, pid, p)), knot(0, pid, nu));
+    let v = min(max(v_in, knot(1, pid, q)), knot(1, pid, nv));
+    // find knot span
+    let su = find_span(0, pid, nu - 1, p, u);
+    let sv = find_span(1, pid, nv - 1, q, v);
+    // basis functions and derivatives (paper's form)
+    let bu = basis(0, pid, su, u, p, second);
+    let bv = basis(1, pid, sv, v, q, second);
+    var bun = bu.n;
+    var bu1 = bu.d1;
+    var bu2 = bu.d2;
+    var bvn = bv.n;
+    var bv1 = bv.d1;
+    var bv2 = bv.d2;
+    // homogeneous sums
+    var a0 = vec4<f32>(0.0);
+    var a1 = vec4<f32>(0.0);
+    var a2 = vec4<f32>(0.0);
+    var a3 = vec4<f32>(0.0);
+    var a4 = vec4<f32>(0.0);
+    var a5 = vec4<f32>(0.0);
+    for (var s = 0; s <= q; s = s + 1) {
+        let row = (sv - q + s) * nu + su - p;
+        var t0 = vec4<f32>(0.0);
+        var t1 = vec4<f32>(0.0);
+        var t2 = vec4<f32>(0.0);
+        for (var r = 0; r <= p; r = r + 1) {
+            let c = textureLoad(control, vec2<i32>(1 + row + r, pid), 0);
+            t0 = t0 + c * bun[r];
+            t1 = t1 + c * bu1[r];
+            t2 = t2 + c * bu2[r];
+        }
+        a0 = a0 + t0 * bvn[s];
+        a1 = a1 + t1 * bvn[s];
+        a2 = a2 + t0 * bv1[s];
+        if second {
+            a3 = a3 + t2 * bvn[s];
+            a4 = a4 + t1 * bv1[s];
+            a5 = a5 + t0 * bv2[s];
+        }
+    }
+    // rational quotient rule
+    var e: Eval;
+    let w = a0.w;
+    e.s = a0.xyz / w;
+    e.su = (a1.xyz - e.s * a1.w) / w;
+    e.sv = (a2.xyz - e.s * a2.w) / w;
+    if second {
+        e.suu = (a3.xyz - e.su * (2.0 * a1.w) - e.s * a3.w) / w;
+        e.suv = (a4.xyz - e.su * a2.w - e.sv * a1.w - e.s * a4.w) / w;
+        e.svv = (a5.xyz - e.sv * (2.0 * a2.w) - e.s * a5.w) / w;
+    }
+    return e;
+}
+
+fn exact_normal(e: Eval, fallback: vec3<f32>) -> vec3<f32> {
+    let n = cross(e.su, e.sv);
+    let scale = length(e.su) + length(e.sv);
+    if length(n) > 1e-6 * scale * scale {
+        return normalize(n);
+    }
+    if length(fallback) > 0.0 {
+        return normalize(fallback);
+    }
+    return vec3<f32>(0.0, 0.0, 1.0);
+}
+
+fn curvatures(e: Eval, n: vec3<f32>) -> vec2<f32> {
+    let ee = dot(e.su, e.su);
+    let ff = dot(e.su, e.sv);
+    let gg = dot(e.sv, e.sv);
+    let l = dot(e.suu, n);
+    let m = dot(e.suv, n);
+    let nn = dot(e.svv, n);
+    let det = ee * gg - ff * ff;
+    if abs(det) <= 1e-30 {
+        return vec2<f32>(0.0);
+    }
+    return vec2<f32>((l * nn - m * m) / det, (ee * nn - 2.0 * ff * m + gg * l) / (2.0 * det));
+}
+
+fn diverging(t_in: f32) -> vec3<f32> {
+    let t = clamp(t_in, -1.0, 1.0);
+    let white = vec3<f32>(0.97);
+    if t < 0.0 {
+        return mix(white, vec3<f32>(0.12, 0.28, 0.85), -t);
+    }
+    return mix(white, vec3<f32>(0.85, 0.15, 0.12), t);
+}
+
+fn isophote(n: vec3<f32>, l: vec3<f32>, bands: u32) -> vec3<f32> {
+    let angle = acos(clamp(dot(n, l), -1.0, 1.0));
+    let band = i32(floor(angle / 3.14159265358979 * f32(bands)));
+    if band % 2 == 0 {
+        return vec3<f32>(0.95, 0.85, 0.32);
+    }
+    return vec3<f32>(0.10, 0.12, 0.20);
+}
+
+fn zebra(n: vec3<f32>, view: vec3<f32>, up: vec3<f32>, stripes: u32) -> vec3<f32> {
+    let r = n * (2.0 * dot(n, view)) - view;
+    let elevation = asin(clamp(dot(r, up), -1.0, 1.0));
+    let k = i32(floor((elevation / 3.14159265358979 + 0.5) * f32(stripes)));
+    if k % 2 == 0 {
+        return vec3<f32>(0.96);
+    }
+    return vec3<f32>(0.05);
+}
+
+fn linear_to_srgb(l: f32) -> f32 {
+    let c = clamp(l, 0.0, 1.0);
+    if c <= 0.0031308 {
+        return c * 12.92;
+    }
+    return 1.055 * pow(c, 1.0 / 2.4) - 0.055;
+}
+
+struct FsOut {
+    @location(0) color: vec4<f32>,
+    @builtin(frag_depth) depth: f32,
+};
+
+@fragment
+fn fs_main(in: VsOut) -> FsOut {
+    let pid = i32(round(in.patch_id));
+    let mode = frame.params.x;
+    let second = mode == 3u || mode == 4u;
+    // exact point and derivatives
+    let e = eval_patch(pid, in.u, in.v, second);
+    let vn = in.normal;
+    var n = exact_normal(e, vn);
+    // two-sided
+    let view = normalize(frame.camera.xyz - e.s);
+    if dot(n, view) < 0.0 {
+        n = -n;
+    }
+    // depth of the exact point
+    let clip = frame.view_proj * vec4<f32>(e.s, 1.0);
+    var out: FsOut;
+    out.depth = clip.z / clip.w;
+    let light = frame.light.xyz;
+    var c: vec3<f32>;
+    if mode == 1u {
+        c = isophote(n, light, frame.params.y);
+    } else if mode == 2u {
+        c = zebra(n, view, vec3<f32>(0.0, 0.0, 1.0), frame.params.z);
+    } else if mode == 3u || mode == 4u {
+        let kh = curvatures(e, n);
+        var value = kh.y;
+        if mode == 3u { value = kh.x; }
+        c = diverging(value / frame.ranges.y);
+    } else if mode == 5u {
+        var m = vec3<f32>(0.0, 0.0, 1.0);
+        if length(vn) > 0.0 { m = normalize(vn); }
+        if dot(m, view) < 0.0 { m = -m; }
+        c = isophote(m, light, frame.params.y);
+    } else if mode == 6u {
+        c = n * 0.5 + vec3<f32>(0.5);
+    } else {
+        let albedo = vec3<f32>(0.72, 0.75, 0.80);
+        let ndl = max(dot(n, light), 0.0);
+        let h = normalize(light + view);
+        var spec = 0.0;
+        if ndl > 0.0 { spec = 0.35 * pow(max(dot(n, h), 0.0), 48.0); }
+        let lin = albedo * (frame.ranges.z + ndl) + vec3<f32>(spec);
+        c = vec3<f32>(linear_to_srgb(lin.x), linear_to_srgb(lin.y), linear_to_srgb(lin.z));
+    }
+    out.color = vec4<f32>(c, 1.0);
+    return out;
+}

@@ -1,0 +1,259 @@
+//! The NURBS pipeline: the paper's knot and control-point textures, a coarse
+//! tessellation generating fragments, `shaders/nurbs.wgsl` evaluating each.
+
+use super::{GpuError, GpuRenderer, trusted_module};
+use crate::nurbs::{NurbsFrame, NurbsVertex, PreparedNurbs};
+use crate::{Frame, RenderError};
+use hitex_core::scene::Camera;
+use wgpu::util::DeviceExt;
+
+/// The NURBS shader source.
+pub const NURBS_WGSL: &str = include_str!("../../shaders/nurbs.wgsl");
+
+struct Uploaded {
+    id: u64,
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    group: wgpu::BindGroup,
+    count: u32,
+}
+
+pub(crate) struct NurbsGpu {
+    pipeline: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+    frame: wgpu::Buffer,
+    uploaded: Option<Uploaded>,
+}
+
+fn texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+impl NurbsGpu {
+    fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        // SAFETY: nurbs.wgsl indexes knots and control points through spans
+        // found inside validated knot vectors, and its local arrays with
+        // r ≤ p ≤ MAX_DEGREE (validated when the surfaces were built).
+        let module = unsafe { trusted_module(device, "nurbs.wgsl", NURBS_WGSL) };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("nurbs"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                texture_entry(1),
+                texture_entry(2),
+                texture_entry(3),
+            ],
+        });
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("nurbs"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32];
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("nurbs"),
+            layout: Some(&pl),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<NurbsVertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &attributes,
+                })],
+            },
+            primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: wgpu::TextureFormat::Rgba8Unorm,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(GpuError::Device(format!("NURBS pipeline creation failed: {e}")));
+        }
+        let frame = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("nurbs frame"),
+            size: std::mem::size_of::<NurbsFrame>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Ok(Self { pipeline, layout, frame, uploaded: None })
+    }
+}
+
+fn float_texture(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    label: &str,
+    format: wgpu::TextureFormat,
+    width: u32,
+    rows: u32,
+    bytes: &[u8],
+) -> Result<wgpu::Texture, GpuError> {
+    let max = device.limits().max_texture_dimension_2d;
+    if width > max || rows > max {
+        return Err(GpuError::Render(format!(
+            "{label} texture of {width}x{rows} texels exceeds the adapter's limit of {max}"
+        )));
+    }
+    let texel = format.block_copy_size(None).unwrap_or(4);
+    let tex = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d { width, height: rows, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    queue.write_texture(
+        wgpu::TexelCopyTextureInfo {
+            texture: &tex,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        bytes,
+        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(texel * width), rows_per_image: Some(rows) },
+        wgpu::Extent3d { width, height: rows, depth_or_array_layers: 1 },
+    );
+    Ok(tex)
+}
+
+impl GpuRenderer {
+    /// Renders a NURBS model seen by `camera` with `nurbs.wgsl` and reads it back.
+    pub fn render_nurbs(
+        &mut self,
+        scene: &PreparedNurbs,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+    ) -> Result<Frame, RenderError> {
+        self.check_output(width, height)?;
+        if self.nurbs.is_none() {
+            self.nurbs = Some(NurbsGpu::new(&self.ctx.device)?);
+        }
+        self.ensure_target(width, height);
+        let device = &self.ctx.device;
+        let queue = &self.ctx.queue;
+        let Some(ng) = self.nurbs.as_mut() else {
+            return Err(RenderError::Gpu(GpuError::Render("NURBS pipeline missing".into())));
+        };
+        if ng.uploaded.as_ref().is_none_or(|u| u.id != scene.id()) {
+            let t = &scene.packed;
+            let rows = t.patches.max(1);
+            let ku = float_texture(
+                device,
+                queue,
+                "u knots",
+                wgpu::TextureFormat::R32Float,
+                t.knot_width,
+                rows,
+                bytemuck::cast_slice(&t.knots_u),
+            )?;
+            let kv = float_texture(
+                device,
+                queue,
+                "v knots",
+                wgpu::TextureFormat::R32Float,
+                t.knot_width,
+                rows,
+                bytemuck::cast_slice(&t.knots_v),
+            )?;
+            let cp = float_texture(
+                device,
+                queue,
+                "control points",
+                wgpu::TextureFormat::Rgba32Float,
+                t.cp_width,
+                rows,
+                bytemuck::cast_slice(&t.control),
+            )?;
+            let views = [
+                ku.create_view(&Default::default()),
+                kv.create_view(&Default::default()),
+                cp.create_view(&Default::default()),
+            ];
+            let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("nurbs"),
+                layout: &ng.layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: ng.frame.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&views[0]) },
+                    wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&views[1]) },
+                    wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&views[2]) },
+                ],
+            });
+            let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("nurbs vertices"),
+                contents: bytemuck::cast_slice(&scene.vertices),
+                usage: wgpu::BufferUsages::VERTEX,
+            });
+            let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("nurbs indices"),
+                contents: bytemuck::cast_slice(&scene.indices),
+                usage: wgpu::BufferUsages::INDEX,
+            });
+            ng.uploaded =
+                Some(Uploaded { id: scene.id(), vertices, indices, group, count: scene.indices.len() as u32 });
+        }
+        let frame = scene.frame(camera, width, height);
+        queue.write_buffer(&ng.frame, 0, bytemuck::bytes_of(&frame));
+        let bg = [
+            hitex_core::texture::linear_to_srgb_u8(frame.background[0]),
+            hitex_core::texture::linear_to_srgb_u8(frame.background[1]),
+            hitex_core::texture::linear_to_srgb_u8(frame.background[2]),
+            255,
+        ];
+        let Some(ng) = self.nurbs.as_ref() else {
+            return Err(RenderError::Gpu(GpuError::Render("NURBS pipeline missing".into())));
+        };
+        let Some(up) = ng.uploaded.as_ref() else {
+            return Err(RenderError::Gpu(GpuError::Render("NURBS data missing after upload".into())));
+        };
+        self.pass_and_read(width, height, bg, |pass| {
+            pass.set_pipeline(&ng.pipeline);
+            pass.set_bind_group(0, &up.group, &[]);
+            pass.set_vertex_buffer(0, up.vertices.slice(..));
+            pass.set_index_buffer(up.indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..up.count, 0, 0..1);
+        })
+    }
+}

@@ -1,0 +1,73 @@
+//! NURBS images: CPU against stored references, GPU against CPU.
+
+mod common;
+
+use common::*;
+use hitex_render::CpuRenderer;
+use hitex_render::nurbs::{NurbsMode, PreparedNurbs};
+
+const S: u32 = 160;
+
+fn teapot() -> PreparedNurbs {
+    let m = hitex_io::models::load_model("teapot").unwrap();
+    PreparedNurbs::new(m.nurbs(), &m.ranges(), 6)
+}
+
+fn modes() -> [(&'static str, NurbsMode); 6] {
+    [
+        ("shaded", NurbsMode::Shaded),
+        ("isophote", NurbsMode::Isophote),
+        ("zebra", NurbsMode::Zebra),
+        ("gauss", NurbsMode::Gauss),
+        ("mean", NurbsMode::Mean),
+        ("vertex-normals", NurbsMode::VertexNormals),
+    ]
+}
+
+#[test]
+fn teapot_cpu_matches_references() {
+    let cpu = CpuRenderer::new();
+    let mut p = teapot();
+    for (name, mode) in modes() {
+        p.mode = mode;
+        let f = cpu.render_nurbs(&p, &p.camera, S, S).unwrap();
+        let r = reference(&format!("teapot-{name}"), &f);
+        assert_images(&format!("teapot-{name}-cpu"), &f, &r, CPU_VS_REFERENCE);
+    }
+}
+
+#[test]
+fn teapot_has_no_nan_or_black_pixel() {
+    // every covered pixel of the shaded teapot is lit: the limit normals at the
+    // lid and bottom poles keep shading finite
+    let cpu = CpuRenderer::new();
+    let mut p = teapot();
+    p.mode = NurbsMode::Normal;
+    for turn in [0.0f32, 1.3, 2.9, 4.4] {
+        let cam = p.camera.orbit(turn);
+        let f = cpu.render_nurbs(&p, &cam, S, S).unwrap();
+        let e = hitex_core::texture::linear_to_srgb_u8;
+        let bg = [e(p.background.x), e(p.background.y), e(p.background.z)];
+        for px in f.rgba.chunks_exact(4) {
+            let is_bg = px[0].abs_diff(bg[0]) <= 8 && px[1].abs_diff(bg[1]) <= 8 && px[2].abs_diff(bg[2]) <= 8;
+            // a covered pixel holds (n + 1)/2 of a unit normal (NaN would write 0, i.e. |n| = √3)
+            let n: Vec<f32> = px[..3].iter().map(|&c| c as f32 / 255.0 * 2.0 - 1.0).collect();
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            assert!(is_bg || (len - 1.0).abs() < 0.03, "pixel {px:?} is no unit normal (|n| = {len}) at turn {turn}");
+        }
+    }
+}
+
+#[test]
+fn teapot_gpu_matches_cpu() {
+    let Some(mut gpu) = gpu_or_skip("teapot_gpu_matches_cpu") else { return };
+    let cpu = CpuRenderer::new();
+    let mut p = teapot();
+    for (name, mode) in modes() {
+        p.mode = mode;
+        let c = cpu.render_nurbs(&p, &p.camera, S, S).unwrap();
+        let g = gpu.render_nurbs(&p, &p.camera, S, S).unwrap();
+        // band modes flip whole pixels at band edges: judged like aliased images
+        assert_images(&format!("teapot-{name}-gpu"), &g, &c, GPU_VS_CPU_ALIASED);
+    }
+}
