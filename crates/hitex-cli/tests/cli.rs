@@ -174,3 +174,81 @@ fn info_lists_adapters() {
     assert!(s.contains("cpu backend"));
     assert!(s.contains("adapter") || s.contains("no GPU adapter"));
 }
+
+#[test]
+fn nurbs_commands_work_and_refuse_bad_input() {
+    let d = tmp("nurbs");
+    // render a model on the CPU
+    let out = d.join("teapot.png");
+    let o = hitex(&[
+        "nurbs",
+        "render",
+        "teapot",
+        "--mode",
+        "isophote",
+        "-o",
+        out.to_str().unwrap(),
+        "--backend",
+        "cpu",
+        "--size",
+        "64x64",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(hitex_png_size(&out), (64, 64));
+    // info names the repairs of the sloppy teapot file
+    let o = hitex(&["nurbs", "info", "teapot"]);
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && s.contains("32 patches") && s.contains("repaired:"), "{s}");
+    // eval as JSON
+    let o = hitex(&["nurbs", "eval", "surface", "--patch", "0", "--uv", "0.5,0.5", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["normal"].as_array().unwrap().len() == 3 && v["gaussian"].is_number());
+
+    // bad input: one line, exit 2, naming the file and record
+    let bad = d.join("bad.igs");
+    let mut text = String::new();
+    text += &format!("{:<72}S{:>7}\n", "x", 1);
+    text += &format!("{:<72}G{:>7}\n", "1H,,1H;;", 1);
+    text += &format!("{:<72}D{:>7}\n", format!("{:>8}{:>8}", 128, 1), 1);
+    text += &format!("{:<72}D{:>7}\n", format!("{:>8}", 128), 2);
+    text += &format!("{:<64}{:>8}P{:>7}\n", "128,99999,99999,3,3,0,0,1,0,0,0.;", 1, 1);
+    std::fs::write(&bad, text).unwrap();
+    for args in [
+        vec!["nurbs", "info", bad.to_str().unwrap()],
+        vec!["nurbs", "render", bad.to_str().unwrap(), "-o", d.join("x.png").to_str().unwrap(), "--backend", "cpu"],
+    ] {
+        let o = hitex(&args);
+        let lines = error_lines(&o);
+        assert_eq!(o.status.code(), Some(2), "{lines:?}");
+        assert_eq!(lines.len(), 1, "{lines:?}");
+        assert!(
+            lines[0].contains("bad.igs") && lines[0].contains("directory entry 1") && lines[0].contains("entity 128"),
+            "{lines:?}"
+        );
+    }
+    let garbage = d.join("garbage.igs");
+    std::fs::write(&garbage, b"\x00\x01 not an iges file at all").unwrap();
+    let o = hitex(&["nurbs", "info", garbage.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(error_lines(&o)[0].contains("garbage.igs"));
+    for args in [
+        vec!["nurbs", "info", "no-such-model"],
+        vec!["nurbs", "eval", "teapot", "--patch", "99", "--uv", "0.5,0.5"],
+        vec!["nurbs", "eval", "teapot", "--patch", "0", "--uv", "7,0.5"],
+        vec!["nurbs", "eval", "teapot", "--patch", "0", "--uv", "nan,0.5"],
+    ] {
+        let o = hitex(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {:?}", error_lines(&o));
+    }
+}
+
+#[test]
+fn bench_nurbs_json_names_models() {
+    let o = hitex(&["bench", "nurbs", "--json", "--frames", "1", "--size", "48x48", "--backends", "cpu"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["bench"], "nurbs");
+    let rows = v["rows"].as_array().unwrap();
+    assert!(rows.iter().any(|r| r["case"].as_str().unwrap().starts_with("teapot")));
+    assert!(rows.iter().any(|r| r["case"].as_str().unwrap().starts_with("surface")));
+}

@@ -168,8 +168,9 @@ mod tests {
 /// degree p − 2 and p − 1, and the derivatives follow from
 /// `N'_{i,p} = p (N_{i,p−1}/(u_{i+p} − u_i) − N_{i+1,p−1}/(u_{i+p+1} − u_{i+1}))`,
 /// applied twice for `N''`. Same values as [`ders_basis_funs`]; this is the
-/// form `nurbs.wgsl` mirrors. Returns `(N, N', N'')` for r = 0..=p.
-pub fn basis_ders_paper<T: Real>(span: usize, u: T, p: usize, knots: &[T]) -> [[T; W]; 3] {
+/// form `nurbs.wgsl` mirrors. Returns `(N, N', N'')` for r = 0..=p; `N''`
+/// only when `second` is set (zeros otherwise).
+pub fn basis_ders_paper<T: Real>(span: usize, u: T, p: usize, knots: &[T], second: bool) -> [[T; W]; 3] {
     let mut n = [T::ZERO; W];
     let mut left = [T::ZERO; W];
     let mut right = [T::ZERO; W];
@@ -226,7 +227,7 @@ pub fn basis_ders_paper<T: Real>(span: usize, u: T, p: usize, knots: &[T]) -> [[
     let mut out = [[T::ZERO; W]; 3];
     out[0] = n;
     out[1] = deriv(p, &row_p1, span + 1 - p);
-    if p >= 2 {
+    if second && p >= 2 {
         // N'_{·, p−1} from the row of degree p − 2, then N'' from it
         let d1 = deriv(p - 1, &row_p2, span + 2 - p);
         out[2] = deriv(p, &d1, span + 1 - p);
@@ -251,7 +252,7 @@ mod paper_tests {
             let n = k.len() - p - 2;
             let span = find_span(n, p, u, &k);
             let a = ders_basis_funs(span, u, p, 2, &k);
-            let b = basis_ders_paper(span, u, p, &k);
+            let b = basis_ders_paper(span, u, p, &k, true);
             for d in 0..3 {
                 let scale = 1.0 + a[d][..=p].iter().map(|x| x.abs()).fold(0.0, f64::max);
                 for r in 0..=p {

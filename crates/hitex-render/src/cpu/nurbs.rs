@@ -60,8 +60,8 @@ pub fn eval_packed(t: &PackedNurbs, patch: usize, u: f32, v: f32, second: bool) 
     let su = find_span(nu - 1, p, u, ku);
     let sv = find_span(nv - 1, q, v, kv);
     // basis functions and derivatives (paper's form)
-    let bu = basis_ders_paper(su, u, p, ku);
-    let bv = basis_ders_paper(sv, v, q, kv);
+    let bu = basis_ders_paper(su, u, p, ku, second);
+    let bv = basis_ders_paper(sv, v, q, kv, second);
     // homogeneous sums
     let mut a = [Vec4::ZERO; 6]; // A, A_u, A_v, A_uu, A_uv, A_vv (xyz = w·P, w)
     for s in 0..=q {
