@@ -130,9 +130,15 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
     let (a, ma) = nurbs(&teapot, NurbsMode::Zebra, 8, 0.6)?;
     let (b, mb) = nurbs(&surface, NurbsMode::Zebra, 8, 0.0)?;
     report("zebra.png", "reflection lines: teapot | 6x14 rational surface", &side_by_side(&[a, b]), ma + mb)?;
+    let spray = hitex_io::models::load_model("spray")?;
     let (a, ma) = nurbs(&surface, NurbsMode::Gauss, 8, 0.0)?;
-    let (b, mb) = nurbs(&surface, NurbsMode::Mean, 8, 0.0)?;
-    report("curvature.png", "Gaussian | mean curvature (blue < 0 < red)", &side_by_side(&[a, b]), ma + mb)?;
+    let (b, mb) = nurbs(&spray, NurbsMode::Mean, 4, 0.5)?;
+    report(
+        "curvature.png",
+        "Gaussian curvature of the surface | mean curvature of the 266-patch spray",
+        &side_by_side(&[a, b]),
+        ma + mb,
+    )?;
     let (a, ma) = nurbs(&teapot, NurbsMode::Isophote, 3, 0.0)?;
     let (b, mb) = nurbs(&teapot, NurbsMode::VertexNormals, 3, 0.0)?;
     report(

@@ -12,7 +12,7 @@ struct Frame {
     view_proj: mat4x4<f32>,
     camera: vec4<f32>,
     light: vec4<f32>,
-    params: vec4<u32>, // mode, isophote bands, zebra stripes
+    params: vec4<u32>, // mode, isophote bands, zebra stripes, prepared-degree kernels on (1)
     ranges: vec4<f32>, // curvature range lo, hi; ambient
     background: vec4<f32>,
 };
@@ -146,6 +146,100 @@ fn basis(dir: i32, pid: i32, span: i32, u: f32, p: i32, second: bool) -> Basis {
     return b;
 }
 
+// ---- the prepared degree: bicubic, every loop bound a constant (the
+// paper's one function per prepared degree; twin of basis_ders_fixed::<3, 4>) ----
+
+struct Basis3 {
+    n: array<f32, 4>,
+    d1: array<f32, 4>,
+    d2: array<f32, 4>,
+};
+
+fn deriv3(dir: i32, pid: i32, deg: i32, lower: array<f32, 4>, first: i32) -> array<f32, 4> {
+    var lo = lower;
+    var d: array<f32, 4>;
+    let fdeg = f32(deg);
+    for (var r = 0; r <= deg; r = r + 1) {
+        let i = first + r - 1;
+        var v = 0.0;
+        if r >= 1 {
+            let den = knot(dir, pid, i + deg) - knot(dir, pid, i);
+            if den > 0.0 { v = v + lo[r - 1] / den; }
+        }
+        if r < deg {
+            let den = knot(dir, pid, i + deg + 1) - knot(dir, pid, i + 1);
+            if den > 0.0 { v = v - lo[r] / den; }
+        }
+        d[r] = fdeg * v;
+    }
+    return d;
+}
+
+fn basis3(dir: i32, pid: i32, span: i32, u: f32, second: bool) -> Basis3 {
+    var n: array<f32, 4>;
+    var left: array<f32, 4>;
+    var right: array<f32, 4>;
+    var row_p1: array<f32, 4>;
+    var row_p2: array<f32, 4>;
+    n[0] = 1.0;
+    for (var j = 1; j <= 3; j = j + 1) {
+        left[j] = u - knot(dir, pid, span + 1 - j);
+        right[j] = knot(dir, pid, span + j) - u;
+        var saved = 0.0;
+        for (var r = 0; r < j; r = r + 1) {
+            let temp = n[r] / (right[r + 1] + left[j - r]);
+            n[r] = saved + right[r + 1] * temp;
+            saved = left[j - r] * temp;
+        }
+        n[j] = saved;
+        if j == 1 { row_p2 = n; }
+        if j == 2 { row_p1 = n; }
+    }
+    var b: Basis3;
+    b.n = n;
+    b.d1 = deriv3(dir, pid, 3, row_p1, span - 2);
+    if second {
+        let d1 = deriv3(dir, pid, 2, row_p2, span - 1);
+        b.d2 = deriv3(dir, pid, 3, d1, span - 2);
+    }
+    return b;
+}
+
+struct Sums {
+    a: array<vec4<f32>, 6>,
+};
+
+fn sums3(pid: i32, bu: Basis3, bv: Basis3, nu: i32, i0: i32, j0: i32, second: bool) -> Sums {
+    var un = bu.n;
+    var u1 = bu.d1;
+    var u2 = bu.d2;
+    var vn = bv.n;
+    var v1 = bv.d1;
+    var v2 = bv.d2;
+    var out: Sums;
+    for (var s = 0; s < 4; s = s + 1) {
+        let row = (j0 + s) * nu + i0;
+        var t0 = vec4<f32>(0.0);
+        var t1 = vec4<f32>(0.0);
+        var t2 = vec4<f32>(0.0);
+        for (var r = 0; r < 4; r = r + 1) {
+            let c = textureLoad(control, vec2<i32>(1 + row + r, pid), 0);
+            t0 = t0 + c * un[r];
+            t1 = t1 + c * u1[r];
+            if second { t2 = t2 + c * u2[r]; }
+        }
+        out.a[0] = out.a[0] + t0 * vn[s];
+        out.a[1] = out.a[1] + t1 * vn[s];
+        out.a[2] = out.a[2] + t0 * v1[s];
+        if second {
+            out.a[3] = out.a[3] + t2 * vn[s];
+            out.a[4] = out.a[4] + t1 * v1[s];
+            out.a[5] = out.a[5] + t0 * v2[s];
+        }
+    }
+    return out;
+}
+
 struct Eval {
     s: vec3<f32>,
     su: vec3<f32>,
@@ -168,42 +262,48 @@ fn eval_patch(pid: i32, u_in: f32, v_in: f32, second: bool) -> Eval {
     // find knot span
     let su = find_span(0, pid, nu - 1, p, u);
     let sv = find_span(1, pid, nv - 1, q, v);
-    // basis functions and derivatives (paper's form)
-    let bu = basis(0, pid, su, u, p, second);
-    let bv = basis(1, pid, sv, v, q, second);
-    var bun = bu.n;
-    var bu1 = bu.d1;
-    var bu2 = bu.d2;
-    var bvn = bv.n;
-    var bv1 = bv.d1;
-    var bv2 = bv.d2;
-    // homogeneous sums
-    var a0 = vec4<f32>(0.0);
-    var a1 = vec4<f32>(0.0);
-    var a2 = vec4<f32>(0.0);
-    var a3 = vec4<f32>(0.0);
-    var a4 = vec4<f32>(0.0);
-    var a5 = vec4<f32>(0.0);
-    for (var s = 0; s <= q; s = s + 1) {
-        let row = (sv - q + s) * nu + su - p;
-        var t0 = vec4<f32>(0.0);
-        var t1 = vec4<f32>(0.0);
-        var t2 = vec4<f32>(0.0);
-        for (var r = 0; r <= p; r = r + 1) {
-            let c = textureLoad(control, vec2<i32>(1 + row + r, pid), 0);
-            t0 = t0 + c * bun[r];
-            t1 = t1 + c * bu1[r];
-            t2 = t2 + c * bu2[r];
-        }
-        a0 = a0 + t0 * bvn[s];
-        a1 = a1 + t1 * bvn[s];
-        a2 = a2 + t0 * bv1[s];
-        if second {
-            a3 = a3 + t2 * bvn[s];
-            a4 = a4 + t1 * bv1[s];
-            a5 = a5 + t0 * bv2[s];
+    // basis functions and derivatives (paper's form), then the homogeneous sums
+    var sm: Sums;
+    if frame.params.w == 1u && p == 3 && q == 3 {
+        let bu3 = basis3(0, pid, su, u, second);
+        let bv3 = basis3(1, pid, sv, v, second);
+        sm = sums3(pid, bu3, bv3, nu, su - 3, sv - 3, second);
+    } else {
+        let bu = basis(0, pid, su, u, p, second);
+        let bv = basis(1, pid, sv, v, q, second);
+        var bun = bu.n;
+        var bu1 = bu.d1;
+        var bu2 = bu.d2;
+        var bvn = bv.n;
+        var bv1 = bv.d1;
+        var bv2 = bv.d2;
+        for (var s = 0; s <= q; s = s + 1) {
+            let row = (sv - q + s) * nu + su - p;
+            var t0 = vec4<f32>(0.0);
+            var t1 = vec4<f32>(0.0);
+            var t2 = vec4<f32>(0.0);
+            for (var r = 0; r <= p; r = r + 1) {
+                let c = textureLoad(control, vec2<i32>(1 + row + r, pid), 0);
+                t0 = t0 + c * bun[r];
+                t1 = t1 + c * bu1[r];
+                if second { t2 = t2 + c * bu2[r]; }
+            }
+            sm.a[0] = sm.a[0] + t0 * bvn[s];
+            sm.a[1] = sm.a[1] + t1 * bvn[s];
+            sm.a[2] = sm.a[2] + t0 * bv1[s];
+            if second {
+                sm.a[3] = sm.a[3] + t2 * bvn[s];
+                sm.a[4] = sm.a[4] + t1 * bv1[s];
+                sm.a[5] = sm.a[5] + t0 * bv2[s];
+            }
         }
     }
+    let a0 = sm.a[0];
+    let a1 = sm.a[1];
+    let a2 = sm.a[2];
+    let a3 = sm.a[3];
+    let a4 = sm.a[4];
+    let a5 = sm.a[5];
     // rational quotient rule
     var e: Eval;
     let w = a0.w;

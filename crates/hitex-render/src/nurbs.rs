@@ -82,7 +82,7 @@ pub struct NurbsFrame {
     pub camera: [f32; 4],
     /// Unit direction towards the light.
     pub light: [f32; 4],
-    /// x: mode, y: isophote bands, z: zebra stripes, w: 0.
+    /// x: mode, y: isophote bands, z: zebra stripes, w: 1 = prepared-degree kernels.
     pub params: [u32; 4],
     /// x, y: curvature range for the colour ramp; z: ambient; w: 0.
     pub ranges: [f32; 4],
@@ -160,6 +160,9 @@ pub struct PreparedNurbs {
     pub curvature_range: [f32; 2],
     /// Linear background.
     pub background: Vec3,
+    /// Use the straight-line kernels of the prepared degree (bicubic) for
+    /// patches of that degree, as the paper does; otherwise the any-degree loops.
+    pub prepared_kernels: bool,
     id: u64,
 }
 
@@ -250,6 +253,7 @@ impl PreparedNurbs {
             stripes: 10,
             curvature_range,
             background: Vec3::new(0.06, 0.07, 0.09),
+            prepared_kernels: true,
             id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
     }
@@ -274,7 +278,7 @@ impl PreparedNurbs {
             view_proj: vp.to_cols_array_2d(),
             camera: camera.position.extend(1.0).to_array(),
             light: light.extend(0.0).to_array(),
-            params: [self.mode.index(), self.bands, self.stripes, 0],
+            params: [self.mode.index(), self.bands, self.stripes, self.prepared_kernels as u32],
             ranges: [-range, range, 0.12, 0.0],
             background: self.background.extend(1.0).to_array(),
         }

@@ -71,3 +71,18 @@ fn teapot_gpu_matches_cpu() {
         assert_images(&format!("teapot-{name}-gpu"), &g, &c, GPU_VS_CPU_ALIASED);
     }
 }
+
+#[test]
+fn prepared_and_generic_kernels_agree_on_both_backends() {
+    let cpu = CpuRenderer::new();
+    let mut p = teapot();
+    p.mode = NurbsMode::Mean;
+    p.prepared_kernels = true;
+    let a = cpu.render_nurbs(&p, &p.camera, S, S).unwrap();
+    p.prepared_kernels = false;
+    let b = cpu.render_nurbs(&p, &p.camera, S, S).unwrap();
+    assert_images("teapot-generic-vs-prepared-cpu", &b, &a, CPU_VS_REFERENCE);
+    let Some(mut gpu) = gpu_or_skip("prepared_and_generic_kernels_agree_on_both_backends") else { return };
+    let g = gpu.render_nurbs(&p, &p.camera, S, S).unwrap();
+    assert_images("teapot-generic-gpu", &g, &a, GPU_VS_CPU);
+}

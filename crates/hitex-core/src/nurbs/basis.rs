@@ -262,3 +262,97 @@ mod paper_tests {
         }
     }
 }
+
+/// [`basis_ders_paper`] specialised for one degree `P` known at compile time:
+/// the same steps, with every loop bound a constant, so the compiler emits the
+/// straight-line code the paper writes by hand for each prepared degree
+/// (`nurbs.wgsl` has the cubic twin `basis3`). `N` must be `P + 1`.
+pub fn basis_ders_fixed<T: Real, const P: usize, const N: usize>(
+    span: usize,
+    u: T,
+    knots: &[T],
+    second: bool,
+) -> [[T; N]; 3] {
+    debug_assert_eq!(N, P + 1);
+    let mut n = [T::ZERO; N];
+    let mut left = [T::ZERO; N];
+    let mut right = [T::ZERO; N];
+    let mut row_p1 = [T::ZERO; N];
+    let mut row_p2 = [T::ZERO; N];
+    n[0] = T::ONE;
+    if P == 1 {
+        row_p1[0] = T::ONE;
+    }
+    if P == 2 {
+        row_p2[0] = T::ONE;
+    }
+    for j in 1..=P {
+        left[j] = u - knots[span + 1 - j];
+        right[j] = knots[span + j] - u;
+        let mut saved = T::ZERO;
+        for r in 0..j {
+            let temp = n[r] / (right[r + 1] + left[j - r]);
+            n[r] = saved + right[r + 1] * temp;
+            saved = left[j - r] * temp;
+        }
+        n[j] = saved;
+        if j + 2 == P {
+            row_p2 = n;
+        }
+        if j + 1 == P {
+            row_p1 = n;
+        }
+    }
+    let deriv = |deg: usize, lower: &[T; N], first: usize| -> [T; N] {
+        let mut d = [T::ZERO; N];
+        let fdeg = T::from_f64(deg as f64);
+        for r in 0..=deg {
+            let i = first + r - 1;
+            let mut v = T::ZERO;
+            if r >= 1 {
+                let den = knots[i + deg] - knots[i];
+                if den > T::ZERO {
+                    v += lower[r - 1] / den;
+                }
+            }
+            if r < deg {
+                let den = knots[i + deg + 1] - knots[i + 1];
+                if den > T::ZERO {
+                    v -= lower[r] / den;
+                }
+            }
+            d[r] = fdeg * v;
+        }
+        d
+    };
+    let mut out = [[T::ZERO; N]; 3];
+    out[0] = n;
+    out[1] = deriv(P, &row_p1, span + 1 - P);
+    if second && P >= 2 {
+        let d1 = deriv(P - 1, &row_p2, span + 2 - P);
+        out[2] = deriv(P, &d1, span + 1 - P);
+    }
+    out
+}
+
+#[cfg(test)]
+mod fixed_tests {
+    use super::super::knots::find_span;
+    use super::*;
+
+    #[test]
+    fn fixed_cubic_equals_the_generic_form() {
+        let k = [0.0f32, 0.0, 0.0, 0.0, 0.2, 0.45, 0.5, 1.0, 1.0, 1.0, 1.0];
+        for i in 0..=100 {
+            let u = i as f32 / 100.0;
+            let span = find_span(6, 3, u, &k);
+            let a = basis_ders_paper(span, u, 3, &k, true);
+            let b = basis_ders_fixed::<f32, 3, 4>(span, u, &k, true);
+            for d in 0..3 {
+                for r in 0..4 {
+                    assert_eq!(a[d][r], b[d][r], "u {u} d{d} r{r}");
+                }
+            }
+        }
+    }
+}

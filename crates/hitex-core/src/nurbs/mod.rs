@@ -15,7 +15,7 @@ pub mod elevate;
 pub mod knots;
 pub mod surface;
 
-pub use basis::{MAX_DEGREE, basis_ders_paper, basis_funs, ders_basis_funs};
+pub use basis::{MAX_DEGREE, basis_ders_fixed, basis_ders_paper, basis_funs, ders_basis_funs};
 pub use knots::{find_span, validate_knots};
 pub use surface::{Curvature, NurbsSurface, SurfaceDerivs};
 

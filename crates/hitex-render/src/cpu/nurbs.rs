@@ -13,7 +13,7 @@
 use super::raster::QuadShader;
 use crate::nurbs::{NurbsFrame, NurbsVertex, PackedNurbs};
 use glam::{Mat4, Vec3, Vec4};
-use hitex_core::nurbs::{basis_ders_paper, find_span};
+use hitex_core::nurbs::{basis_ders_fixed, basis_ders_paper, find_span};
 
 /// Varyings: tessellation normal (3), u, v, patch.
 pub const VARYINGS: usize = 6;
@@ -41,8 +41,10 @@ pub struct Eval {
 }
 
 /// Evaluates patch `patch` of the packed textures at (u, v) in f32, with
-/// second derivatives when `second` is set.
-pub fn eval_packed(t: &PackedNurbs, patch: usize, u: f32, v: f32, second: bool) -> Eval {
+/// second derivatives when `second` is set. `prepared` selects the
+/// straight-line kernels of the prepared degree (bicubic, the paper's design)
+/// for patches of that degree; other patches take the any-degree loops.
+pub fn eval_packed(t: &PackedNurbs, patch: usize, u: f32, v: f32, second: bool, prepared: bool) -> Eval {
     // patch header
     let kw = t.knot_width as usize;
     let cw = t.cp_width as usize;
@@ -59,29 +61,16 @@ pub fn eval_packed(t: &PackedNurbs, patch: usize, u: f32, v: f32, second: bool) 
     // find knot span
     let su = find_span(nu - 1, p, u, ku);
     let sv = find_span(nv - 1, q, v, kv);
-    // basis functions and derivatives (paper's form)
-    let bu = basis_ders_paper(su, u, p, ku, second);
-    let bv = basis_ders_paper(sv, v, q, kv, second);
-    // homogeneous sums
-    let mut a = [Vec4::ZERO; 6]; // A, A_u, A_v, A_uu, A_uv, A_vv (xyz = w·P, w)
-    for s in 0..=q {
-        let row = (sv - q + s) * nu + su - p;
-        let (mut t0, mut t1, mut t2) = (Vec4::ZERO, Vec4::ZERO, Vec4::ZERO);
-        for r in 0..=p {
-            let c = Vec4::from_array(cp[row + r]);
-            t0 += c * bu[0][r];
-            t1 += c * bu[1][r];
-            t2 += c * bu[2][r];
-        }
-        a[0] += t0 * bv[0][s];
-        a[1] += t1 * bv[0][s];
-        a[2] += t0 * bv[1][s];
-        if second {
-            a[3] += t2 * bv[0][s];
-            a[4] += t1 * bv[1][s];
-            a[5] += t0 * bv[2][s];
-        }
-    }
+    // basis functions and derivatives (paper's form), then the homogeneous sums
+    let a = if prepared && p == 3 && q == 3 {
+        let bu = basis_ders_fixed::<f32, 3, 4>(su, u, ku, second);
+        let bv = basis_ders_fixed::<f32, 3, 4>(sv, v, kv, second);
+        sums::<4, 4>(&bu, &bv, 4, 4, cp, nu, su - 3, sv - 3, second)
+    } else {
+        let bu = basis_ders_paper(su, u, p, ku, second);
+        let bv = basis_ders_paper(sv, v, q, kv, second);
+        sums(&bu, &bv, p + 1, q + 1, cp, nu, su - p, sv - q, second)
+    };
     // rational quotient rule
     let w = a[0].w;
     let s = a[0].truncate() / w;
@@ -94,6 +83,45 @@ pub fn eval_packed(t: &PackedNurbs, patch: usize, u: f32, v: f32, second: bool) 
         e.svv = (a[5].truncate() - s_v * (2.0 * a[2].w) - s * a[5].w) / w;
     }
     e
+}
+
+/// Homogeneous sums A, A_u, A_v (and A_uu, A_uv, A_vv) over the `nr`×`ns`
+/// control points from (i0, j0).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn sums<const A: usize, const B: usize>(
+    bu: &[[f32; A]; 3],
+    bv: &[[f32; B]; 3],
+    nr: usize,
+    ns: usize,
+    cp: &[[f32; 4]],
+    nu: usize,
+    i0: usize,
+    j0: usize,
+    second: bool,
+) -> [Vec4; 6] {
+    let mut a = [Vec4::ZERO; 6]; // A, A_u, A_v, A_uu, A_uv, A_vv (xyz = w·P, w)
+    for s in 0..ns.min(B) {
+        let row = (j0 + s) * nu + i0;
+        let (mut t0, mut t1, mut t2) = (Vec4::ZERO, Vec4::ZERO, Vec4::ZERO);
+        for r in 0..nr.min(A) {
+            let c = Vec4::from_array(cp[row + r]);
+            t0 += c * bu[0][r];
+            t1 += c * bu[1][r];
+            if second {
+                t2 += c * bu[2][r];
+            }
+        }
+        a[0] += t0 * bv[0][s];
+        a[1] += t1 * bv[0][s];
+        a[2] += t0 * bv[1][s];
+        if second {
+            a[3] += t2 * bv[0][s];
+            a[4] += t1 * bv[1][s];
+            a[5] += t0 * bv[2][s];
+        }
+    }
+    a
 }
 
 /// Unit normal `S_u × S_v`, or `fallback` where the cross product vanishes
@@ -156,7 +184,7 @@ impl<'a> NurbsProgram<'a> {
         let mode = f.params[0];
         let second = mode == 3 || mode == 4;
         // exact point and derivatives
-        let e = eval_packed(self.packed, patch, v[3], v[4], second);
+        let e = eval_packed(self.packed, patch, v[3], v[4], second, f.params[3] == 1);
         let vn = Vec3::new(v[0], v[1], v[2]);
         let mut n = exact_normal(&e, vn);
         // two-sided
@@ -263,7 +291,7 @@ mod tests {
                 let (u, v) = (k as f64 / 20.0, l as f64 / 20.0);
                 let r = s.derivatives(u, v, 2);
                 for patch in 0..2 {
-                    let e = eval_packed(&packed, patch, u as f32, v as f32, true);
+                    let e = eval_packed(&packed, patch, u as f32, v as f32, true, patch == 0);
                     let pairs = [
                         (e.s, r.d[0][0]),
                         (e.su, r.d[1][0]),
