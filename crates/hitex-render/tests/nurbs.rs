@@ -86,3 +86,49 @@ fn prepared_and_generic_kernels_agree_on_both_backends() {
     let g = gpu.render_nurbs(&p, &p.camera, S, S).unwrap();
     assert_images("teapot-generic-gpu", &g, &a, GPU_VS_CPU);
 }
+
+/// A wavy patch of the given degrees with non-uniform knots and varying weights.
+fn wavy(p: usize, q: usize, nu: usize, nv: usize) -> hitex_core::nurbs::NurbsSurface {
+    let knots = |n: usize, d: usize| -> Vec<f64> {
+        let inner = n - d - 1;
+        let mut k = vec![0.0; d + 1];
+        for i in 1..=inner {
+            let x = i as f64 / (inner + 1) as f64;
+            k.push(x * x * (3.0 - 2.0 * x));
+        }
+        k.extend(vec![1.0; d + 1]);
+        k
+    };
+    let mut pts = Vec::new();
+    for j in 0..nv {
+        for i in 0..nu {
+            let (x, y) = (i as f64 / (nu - 1) as f64 * 4.0 - 2.0, j as f64 / (nv - 1) as f64 * 4.0 - 2.0);
+            pts.push([x, y, 0.6 * (1.3 * x).sin() * (0.9 * y).cos(), 1.0 + 0.25 * ((i + 2 * j) % 3) as f64]);
+        }
+    }
+    hitex_core::nurbs::NurbsSurface::new(p, q, nu, nv, knots(nu, p), knots(nv, q), pts).unwrap()
+}
+
+#[test]
+fn mixed_and_high_degrees_render_and_agree() {
+    // degrees as real CAD exports mix them, up to 9 (and the maximum, 15)
+    let patches = vec![wavy(9, 9, 12, 11), wavy(5, 6, 8, 9), wavy(7, 3, 9, 6), wavy(5, 1, 7, 3), wavy(15, 2, 16, 4)];
+    let ranges: Vec<_> = patches.iter().map(|s| s.domain()).collect();
+    let cpu = CpuRenderer::new();
+    let mut gpu = gpu_or_skip("mixed_and_high_degrees_render_and_agree");
+    for (k, s) in patches.iter().enumerate() {
+        let mut p = PreparedNurbs::new(vec![s.clone()], &ranges[k..=k], 6);
+        for mode in [NurbsMode::Shaded, NurbsMode::Mean] {
+            p.mode = mode;
+            let c = cpu.render_nurbs(&p, &p.camera, 96, 96).unwrap();
+            let e = hitex_core::texture::linear_to_srgb_u8;
+            let bg = [e(p.background.x), e(p.background.y), e(p.background.z)];
+            let covered = c.rgba.chunks_exact(4).filter(|px| px[..3] != bg).count();
+            assert!(covered > 96 * 96 / 10, "degree {}×{}: only {covered} pixels drawn", s.degree_u, s.degree_v);
+            if let Some(g) = gpu.as_mut() {
+                let f = g.render_nurbs(&p, &p.camera, 96, 96).unwrap();
+                assert_images(&format!("degree-{}x{}-{mode:?}-gpu", s.degree_u, s.degree_v), &f, &c, GPU_VS_CPU_ALIASED);
+            }
+        }
+    }
+}
