@@ -95,6 +95,10 @@ pub struct RenderArgs {
     /// Curvature mapped to full colour (default: from the model).
     #[arg(long)]
     pub range: Option<f32>,
+    /// Raise patches below degree 3 to it by exact degree elevation (the
+    /// paper's design: one prepared kernel per degree).
+    #[arg(long)]
+    pub elevate: bool,
     /// Turn the camera about the model's vertical axis, degrees.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub turn: f32,
@@ -133,6 +137,10 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             if let Some(r) = a.range {
                 let slot = if p.mode == NurbsMode::Gauss { 0 } else { 1 };
                 p.curvature_range[slot] = r;
+            }
+            if a.elevate {
+                let n = p.elevate_to_prepared();
+                println!("elevated {n} patches to degree 3");
             }
             let cam = p.camera.orbit(a.turn.to_radians());
             let mut r = AnyRenderer::open(a.backend.into())?;

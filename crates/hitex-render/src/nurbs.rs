@@ -7,6 +7,9 @@ use glam::{Mat4, Vec3};
 use hitex_core::nurbs::NurbsSurface;
 use hitex_core::scene::Camera;
 
+/// The degree with straight-line kernels in both fragment programs.
+pub const PREPARED_DEGREE: usize = 3;
+
 /// A patch's parameter range `((u0, u1), (v0, v1))`.
 pub type ParamRange = ((f64, f64), (f64, f64));
 
@@ -256,6 +259,32 @@ impl PreparedNurbs {
             prepared_kernels: true,
             id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
+    }
+
+    /// The paper's design for shaders without loops: raises every patch whose
+    /// degree is below the prepared degree (3) to it by exact degree elevation,
+    /// so that the prepared bicubic kernels evaluate it. The surfaces, their
+    /// parameterisation and so the tessellation stay the same. Returns how
+    /// many patches were elevated.
+    pub fn elevate_to_prepared(&mut self) -> usize {
+        let mut count = 0;
+        for s in &mut self.surfaces {
+            if s.degree_u > PREPARED_DEGREE || s.degree_v > PREPARED_DEGREE || (s.degree_u, s.degree_v) == (PREPARED_DEGREE, PREPARED_DEGREE) {
+                continue;
+            }
+            while s.degree_u < PREPARED_DEGREE {
+                *s = s.elevate(true);
+            }
+            while s.degree_v < PREPARED_DEGREE {
+                *s = s.elevate(false);
+            }
+            count += 1;
+        }
+        if count > 0 {
+            self.packed = PackedNurbs::new(&self.surfaces);
+            self.id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        }
+        count
     }
 
     /// Identity of the uploaded content (geometry and packed textures).

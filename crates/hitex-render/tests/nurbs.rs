@@ -132,3 +132,21 @@ fn mixed_and_high_degrees_render_and_agree() {
         }
     }
 }
+
+#[test]
+fn elevation_to_the_prepared_degree_keeps_the_image() {
+    let s = wavy(2, 1, 5, 3);
+    let range = [s.domain()];
+    let cpu = CpuRenderer::new();
+    let mut p = PreparedNurbs::new(vec![s], &range, 6);
+    p.mode = NurbsMode::Isophote;
+    let before = cpu.render_nurbs(&p, &p.camera, 96, 96).unwrap();
+    assert_eq!(p.elevate_to_prepared(), 1);
+    assert_eq!((p.surfaces[0].degree_u, p.surfaces[0].degree_v), (3, 3));
+    let after = cpu.render_nurbs(&p, &p.camera, 96, 96).unwrap();
+    assert_images("elevated-cpu", &after, &before, GPU_VS_CPU);
+    if let Some(mut g) = gpu_or_skip("elevation_to_the_prepared_degree_keeps_the_image") {
+        let f = g.render_nurbs(&p, &p.camera, 96, 96).unwrap();
+        assert_images("elevated-gpu", &f, &before, GPU_VS_CPU_ALIASED);
+    }
+}
