@@ -42,6 +42,8 @@ pub enum ModeArg {
     Isophote,
     /// Reflection lines.
     Zebra,
+    /// Highlight lines.
+    Highlight,
     /// Gaussian curvature.
     Gauss,
     /// Mean curvature.
@@ -58,6 +60,7 @@ impl From<ModeArg> for NurbsMode {
             ModeArg::Shaded => NurbsMode::Shaded,
             ModeArg::Isophote => NurbsMode::Isophote,
             ModeArg::Zebra => NurbsMode::Zebra,
+            ModeArg::Highlight => NurbsMode::Highlight,
             ModeArg::Gauss => NurbsMode::Gauss,
             ModeArg::Mean => NurbsMode::Mean,
             ModeArg::VertexNormals => NurbsMode::VertexNormals,
@@ -95,6 +98,9 @@ pub struct RenderArgs {
     /// Curvature mapped to full colour (default: from the model).
     #[arg(long)]
     pub range: Option<f32>,
+    /// Draw patch boundaries over the display mode.
+    #[arg(long)]
+    pub boundaries: bool,
     /// Raise patches below degree 3 to it by exact degree elevation (the
     /// paper's design: one prepared kernel per degree).
     #[arg(long)]
@@ -134,6 +140,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             p.mode = a.mode.into();
             p.bands = a.bands;
             p.stripes = a.stripes;
+            p.boundaries = a.boundaries;
             if let Some(r) = a.range {
                 let slot = if p.mode == NurbsMode::Gauss { 0 } else { 1 };
                 p.curvature_range[slot] = r;

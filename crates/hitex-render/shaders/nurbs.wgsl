@@ -12,9 +12,10 @@ struct Frame {
     view_proj: mat4x4<f32>,
     camera: vec4<f32>,
     light: vec4<f32>,
-    params: vec4<u32>, // mode, isophote bands, zebra stripes, prepared-degree kernels on (1)
+    params: vec4<u32>, // mode, isophote bands, stripes, flags (1: prepared kernels, 2: patch boundaries)
     ranges: vec4<f32>, // curvature range lo, hi; ambient
     background: vec4<f32>,
+    model: vec4<f32>, // bounding sphere: centre, radius
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -264,7 +265,7 @@ fn eval_patch(pid: i32, u_in: f32, v_in: f32, second: bool) -> Eval {
     let sv = find_span(1, pid, nv - 1, q, v);
     // basis functions and derivatives (paper's form), then the homogeneous sums
     var sm: Sums;
-    if frame.params.w == 1u && p == 3 && q == 3 {
+    if (frame.params.w & 1u) == 1u && p == 3 && q == 3 {
         let bu3 = basis3(0, pid, su, u, second);
         let bv3 = basis3(1, pid, sv, v, second);
         sm = sums3(pid, bu3, bv3, nu, su - 3, sv - 3, second);
@@ -372,6 +373,37 @@ fn zebra(n: vec3<f32>, view: vec3<f32>, up: vec3<f32>, stripes: u32) -> vec3<f32
     return vec3<f32>(0.05);
 }
 
+fn highlight(p: vec3<f32>, n: vec3<f32>, e: vec3<f32>, origin: vec3<f32>, spacing: f32) -> vec3<f32> {
+    let en = dot(e, n);
+    if abs(en) < 1e-4 {
+        return vec3<f32>(0.05);
+    }
+    let t = (dot(e, origin) - dot(e, p)) / en;
+    let x = p + n * t;
+    var d = vec3<f32>(1.0, 0.0, 0.0);
+    let ez = cross(e, vec3<f32>(0.0, 0.0, 1.0));
+    if length(ez) > 1e-3 {
+        d = normalize(ez);
+    }
+    let c = cross(e, d);
+    let k = i32(floor(dot(c, x - origin) / spacing));
+    if ((k % 2) + 2) % 2 == 0 {
+        return vec3<f32>(0.95, 0.95, 0.9);
+    }
+    return vec3<f32>(0.08, 0.1, 0.16);
+}
+
+fn on_boundary(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> bool {
+    let head = textureLoad(control, vec2<i32>(0, pid), 0);
+    let u0 = knot(0, pid, i32(head.x));
+    let u1 = knot(0, pid, i32(head.z));
+    let v0 = knot(1, pid, i32(head.y));
+    let v1 = knot(1, pid, i32(head.w));
+    let du = min(u - u0, u1 - u);
+    let dv = min(v - v0, v1 - v);
+    return du < fu || dv < fv;
+}
+
 fn linear_to_srgb(l: f32) -> f32 {
     let c = clamp(l, 0.0, 1.0);
     if c <= 0.0031308 {
@@ -389,6 +421,9 @@ struct FsOut {
 fn fs_main(in: VsOut) -> FsOut {
     let pid = i32(round(in.patch_id));
     let mode = frame.params.x;
+    // fine derivatives for the boundary overlay, taken in uniform control flow
+    let fu = abs(dpdxFine(in.u)) + abs(dpdyFine(in.u));
+    let fv = abs(dpdxFine(in.v)) + abs(dpdyFine(in.v));
     let second = mode == 3u || mode == 4u;
     // exact point and derivatives
     let e = eval_patch(pid, in.u, in.v, second);
@@ -421,6 +456,9 @@ fn fs_main(in: VsOut) -> FsOut {
         c = isophote(m, light, frame.params.y);
     } else if mode == 6u {
         c = n * 0.5 + vec3<f32>(0.5);
+    } else if mode == 7u {
+        let r = frame.model.w;
+        c = highlight(e.s, n, light, frame.model.xyz + light * (2.0 * r), 2.0 * r / f32(max(frame.params.z, 1u)));
     } else {
         let albedo = vec3<f32>(0.72, 0.75, 0.80);
         let ndl = max(dot(n, light), 0.0);
@@ -429,6 +467,9 @@ fn fs_main(in: VsOut) -> FsOut {
         if ndl > 0.0 { spec = 0.35 * pow(max(dot(n, h), 0.0), 48.0); }
         let lin = albedo * (frame.ranges.z + ndl) + vec3<f32>(spec);
         c = vec3<f32>(linear_to_srgb(lin.x), linear_to_srgb(lin.y), linear_to_srgb(lin.z));
+    }
+    if (frame.params.w & 2u) == 2u && on_boundary(pid, in.u, in.v, fu, fv) {
+        c = vec3<f32>(20.0 / 255.0, 20.0 / 255.0, 24.0 / 255.0);
     }
     out.color = vec4<f32>(c, 1.0);
     return out;

@@ -23,6 +23,9 @@ pub enum NurbsMode {
     Isophote,
     /// Reflection lines of a striped environment.
     Zebra,
+    /// Highlight lines: where the normal line meets a plane of parallel
+    /// light lines (view-independent, Beier & Chen).
+    Highlight,
     /// Gaussian curvature on a diverging colour ramp.
     Gauss,
     /// Mean curvature on a diverging colour ramp.
@@ -36,10 +39,11 @@ pub enum NurbsMode {
 
 impl NurbsMode {
     /// Every mode with its CLI name.
-    pub const ALL: [(&'static str, NurbsMode); 7] = [
+    pub const ALL: [(&'static str, NurbsMode); 8] = [
         ("shaded", NurbsMode::Shaded),
         ("isophote", NurbsMode::Isophote),
         ("zebra", NurbsMode::Zebra),
+        ("highlight", NurbsMode::Highlight),
         ("gauss", NurbsMode::Gauss),
         ("mean", NurbsMode::Mean),
         ("vertex-normals", NurbsMode::VertexNormals),
@@ -55,6 +59,7 @@ impl NurbsMode {
             NurbsMode::Mean => 4,
             NurbsMode::VertexNormals => 5,
             NurbsMode::Normal => 6,
+            NurbsMode::Highlight => 7,
         }
     }
 }
@@ -85,12 +90,15 @@ pub struct NurbsFrame {
     pub camera: [f32; 4],
     /// Unit direction towards the light.
     pub light: [f32; 4],
-    /// x: mode, y: isophote bands, z: zebra stripes, w: 1 = prepared-degree kernels.
+    /// x: mode, y: isophote bands, z: zebra / highlight stripes, w: flags
+    /// (bit 0: prepared-degree kernels, bit 1: patch-boundary overlay).
     pub params: [u32; 4],
     /// x, y: curvature range for the colour ramp; z: ambient; w: 0.
     pub ranges: [f32; 4],
     /// Linear background RGB.
     pub background: [f32; 4],
+    /// Model bounding sphere: centre xyz, radius w (places the highlight-line plane).
+    pub model: [f32; 4],
 }
 
 /// The paper's textures, as flat arrays (row-major, one row per patch).
@@ -166,6 +174,10 @@ pub struct PreparedNurbs {
     /// Use the straight-line kernels of the prepared degree (bicubic) for
     /// patches of that degree, as the paper does; otherwise the any-degree loops.
     pub prepared_kernels: bool,
+    /// Draw patch boundaries (one pixel wide) over the display mode.
+    pub boundaries: bool,
+    /// Bounding sphere of the tessellation: centre, radius.
+    pub bounds: (Vec3, f32),
     id: u64,
 }
 
@@ -257,6 +269,8 @@ impl PreparedNurbs {
             curvature_range,
             background: Vec3::new(0.06, 0.07, 0.09),
             prepared_kernels: true,
+            boundaries: false,
+            bounds: (center, radius),
             id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
     }
@@ -269,7 +283,10 @@ impl PreparedNurbs {
     pub fn elevate_to_prepared(&mut self) -> usize {
         let mut count = 0;
         for s in &mut self.surfaces {
-            if s.degree_u > PREPARED_DEGREE || s.degree_v > PREPARED_DEGREE || (s.degree_u, s.degree_v) == (PREPARED_DEGREE, PREPARED_DEGREE) {
+            if s.degree_u > PREPARED_DEGREE
+                || s.degree_v > PREPARED_DEGREE
+                || (s.degree_u, s.degree_v) == (PREPARED_DEGREE, PREPARED_DEGREE)
+            {
                 continue;
             }
             while s.degree_u < PREPARED_DEGREE {
@@ -307,9 +324,15 @@ impl PreparedNurbs {
             view_proj: vp.to_cols_array_2d(),
             camera: camera.position.extend(1.0).to_array(),
             light: light.extend(0.0).to_array(),
-            params: [self.mode.index(), self.bands, self.stripes, self.prepared_kernels as u32],
+            params: [
+                self.mode.index(),
+                self.bands,
+                self.stripes,
+                self.prepared_kernels as u32 | (self.boundaries as u32) << 1,
+            ],
             ranges: [-range, range, 0.12, 0.0],
             background: self.background.extend(1.0).to_array(),
+            model: self.bounds.0.extend(self.bounds.1).to_array(),
         }
     }
 

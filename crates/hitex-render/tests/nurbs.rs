@@ -13,9 +13,10 @@ fn teapot() -> PreparedNurbs {
     PreparedNurbs::new(m.nurbs(), &m.ranges(), 6)
 }
 
-fn modes() -> [(&'static str, NurbsMode); 6] {
+fn modes() -> [(&'static str, NurbsMode); 7] {
     [
         ("shaded", NurbsMode::Shaded),
+        ("highlight", NurbsMode::Highlight),
         ("isophote", NurbsMode::Isophote),
         ("zebra", NurbsMode::Zebra),
         ("gauss", NurbsMode::Gauss),
@@ -127,7 +128,12 @@ fn mixed_and_high_degrees_render_and_agree() {
             assert!(covered > 96 * 96 / 10, "degree {}×{}: only {covered} pixels drawn", s.degree_u, s.degree_v);
             if let Some(g) = gpu.as_mut() {
                 let f = g.render_nurbs(&p, &p.camera, 96, 96).unwrap();
-                assert_images(&format!("degree-{}x{}-{mode:?}-gpu", s.degree_u, s.degree_v), &f, &c, GPU_VS_CPU_ALIASED);
+                assert_images(
+                    &format!("degree-{}x{}-{mode:?}-gpu", s.degree_u, s.degree_v),
+                    &f,
+                    &c,
+                    GPU_VS_CPU_ALIASED,
+                );
             }
         }
     }
@@ -148,5 +154,22 @@ fn elevation_to_the_prepared_degree_keeps_the_image() {
     if let Some(mut g) = gpu_or_skip("elevation_to_the_prepared_degree_keeps_the_image") {
         let f = g.render_nurbs(&p, &p.camera, 96, 96).unwrap();
         assert_images("elevated-gpu", &f, &before, GPU_VS_CPU_ALIASED);
+    }
+}
+
+#[test]
+fn patch_boundaries_overlay_on_both_backends() {
+    let cpu = CpuRenderer::new();
+    let mut p = teapot();
+    p.mode = NurbsMode::Shaded;
+    let plain = cpu.render_nurbs(&p, &p.camera, S, S).unwrap();
+    p.boundaries = true;
+    let c = cpu.render_nurbs(&p, &p.camera, S, S).unwrap();
+    let lines = c.rgba.chunks_exact(4).filter(|px| px[..3] == [20, 20, 24]).count();
+    let before = plain.rgba.chunks_exact(4).filter(|px| px[..3] == [20, 20, 24]).count();
+    assert!(lines > before + 200, "{lines} boundary pixels (plain: {before})");
+    if let Some(mut g) = gpu_or_skip("patch_boundaries_overlay_on_both_backends") {
+        let f = g.render_nurbs(&p, &p.camera, S, S).unwrap();
+        assert_images("teapot-boundaries-gpu", &f, &c, GPU_VS_CPU_ALIASED);
     }
 }

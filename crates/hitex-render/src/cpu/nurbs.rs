@@ -165,6 +165,22 @@ pub fn zebra(n: Vec3, view: Vec3, up: Vec3, stripes: u32) -> Vec3 {
     if k % 2 == 0 { Vec3::splat(0.96) } else { Vec3::splat(0.05) }
 }
 
+/// Highlight lines: the normal line through `p` meets the plane of light
+/// lines (normal `e`, through `origin`), and the stripe is read across the lines.
+pub fn highlight(p: Vec3, n: Vec3, e: Vec3, origin: Vec3, spacing: f32) -> Vec3 {
+    let en = e.dot(n);
+    if en.abs() < 1e-4 {
+        return Vec3::splat(0.05);
+    }
+    let t = (e.dot(origin) - e.dot(p)) / en;
+    let x = p + n * t;
+    // lines run along d, stripes are counted along c
+    let d = if e.cross(Vec3::Z).length() > 1e-3 { e.cross(Vec3::Z).normalize() } else { Vec3::X };
+    let c = e.cross(d);
+    let k = (c.dot(x - origin) / spacing).floor() as i32;
+    if k.rem_euclid(2) == 0 { Vec3::new(0.95, 0.95, 0.9) } else { Vec3::new(0.08, 0.1, 0.16) }
+}
+
 /// The program with its bindings.
 pub struct NurbsProgram<'a> {
     frame: &'a NurbsFrame,
@@ -178,13 +194,28 @@ impl<'a> NurbsProgram<'a> {
         Self { frame, packed, view_proj: Mat4::from_cols_array_2d(&frame.view_proj) }
     }
 
+    /// Whether (u, v) lies within one pixel (`fu`, `fv` = fwidth) of its
+    /// patch's domain boundary.
+    fn on_boundary(&self, v: &[f32; VARYINGS], fu: f32, fv: f32) -> bool {
+        let t = self.packed;
+        let patch = (v[5].round().max(0.0) as usize).min(t.patches.saturating_sub(1) as usize);
+        let (kw, cw) = (t.knot_width as usize, t.cp_width as usize);
+        let head = t.control[patch * cw];
+        let (p, q, nu, nv) = (head[0] as usize, head[1] as usize, head[2] as usize, head[3] as usize);
+        let (u0, u1) = (t.knots_u[patch * kw + 1 + p], t.knots_u[patch * kw + 1 + nu]);
+        let (v0, v1) = (t.knots_v[patch * kw + 1 + q], t.knots_v[patch * kw + 1 + nv]);
+        let du = (v[3] - u0).min(u1 - v[3]);
+        let dv = (v[4] - v0).min(v1 - v[4]);
+        du < fu || dv < fv
+    }
+
     fn lane(&self, v: &[f32; VARYINGS]) -> ([u8; 4], f32) {
         let f = self.frame;
         let patch = (v[5].round().max(0.0) as usize).min(self.packed.patches.saturating_sub(1) as usize);
         let mode = f.params[0];
         let second = mode == 3 || mode == 4;
         // exact point and derivatives
-        let e = eval_packed(self.packed, patch, v[3], v[4], second, f.params[3] == 1);
+        let e = eval_packed(self.packed, patch, v[3], v[4], second, f.params[3] & 1 == 1);
         let vn = Vec3::new(v[0], v[1], v[2]);
         let mut n = exact_normal(&e, vn);
         // two-sided
@@ -217,6 +248,10 @@ impl<'a> NurbsProgram<'a> {
                 raw(isophote(m, light, f.params[1]))
             }
             6 => raw(n * 0.5 + Vec3::splat(0.5)),
+            7 => {
+                let (c, r) = (Vec3::new(f.model[0], f.model[1], f.model[2]), f.model[3]);
+                raw(highlight(e.s, n, light, c + light * (2.0 * r), 2.0 * r / f.params[2].max(1) as f32))
+            }
             _ => {
                 let albedo = Vec3::new(0.72, 0.75, 0.80);
                 let ndl = n.dot(light).max(0.0);
@@ -248,10 +283,24 @@ impl QuadShader<VARYINGS> for NurbsProgram<'_> {
     ) -> ([[u8; 4]; 4], [f32; 4]) {
         let mut rgba = [[0u8; 4]; 4];
         let mut depth = [f32::NAN; 4];
-        // helper lanes: this program takes no derivatives, so they need no work
+        // patch-boundary overlay: fwidth of u and v from the quad's lanes
+        let overlay = self.frame.params[3] & 2 == 2;
+        let (fu, fv) = if overlay {
+            let fw = |a: [f32; 4]| -> [f32; 4] {
+                let (dx, dy) = (super::textured::dpdx(a), super::textured::dpdy(a));
+                std::array::from_fn(|i| dx[i].abs() + dy[i].abs())
+            };
+            (fw(v.map(|l| l[3])), fw(v.map(|l| l[4])))
+        } else {
+            ([0.0; 4], [0.0; 4])
+        };
+        // helper lanes only feed the derivatives above: their colour is never computed
         for lane in 0..4 {
             if live & (1 << lane) != 0 {
-                let (c, d) = self.lane(&v[lane]);
+                let (mut c, d) = self.lane(&v[lane]);
+                if overlay && self.on_boundary(&v[lane], fu[lane], fv[lane]) {
+                    c = [20, 20, 24, 255];
+                }
                 rgba[lane] = c;
                 depth[lane] = d;
             }
