@@ -113,7 +113,7 @@ fn wavy(p: usize, q: usize, nu: usize, nv: usize) -> hitex_core::nurbs::NurbsSur
 #[test]
 fn mixed_and_high_degrees_render_and_agree() {
     // degrees as real CAD exports mix them, up to 9 (and the maximum, 15)
-    let patches = vec![wavy(9, 9, 12, 11), wavy(5, 6, 8, 9), wavy(7, 3, 9, 6), wavy(5, 1, 7, 3), wavy(15, 2, 16, 4)];
+    let patches = [wavy(9, 9, 12, 11), wavy(5, 6, 8, 9), wavy(7, 3, 9, 6), wavy(5, 1, 7, 3), wavy(15, 2, 16, 4)];
     let ranges: Vec<_> = patches.iter().map(|s| s.domain()).collect();
     let cpu = CpuRenderer::new();
     let mut gpu = gpu_or_skip("mixed_and_high_degrees_render_and_agree");
