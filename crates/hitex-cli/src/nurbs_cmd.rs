@@ -17,6 +17,14 @@ pub enum NurbsCommand {
         /// Model name or IGES file.
         model: String,
     },
+    /// Write a model as IGES (entity 128) or as hitex's native JSON.
+    Export {
+        /// Model name or file.
+        model: String,
+        /// Output file: `.igs`/`.iges` or `.json`.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Point, partials, normal and curvatures at a parameter.
     Eval {
         /// Model name or IGES file.
@@ -208,6 +216,25 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             for r in &m.repairs {
                 println!("repaired: {r}");
             }
+            Ok(())
+        }
+        NurbsCommand::Export { model, output } => {
+            let m = load_model(&model)?;
+            let ext = output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+            let text = match ext.as_deref() {
+                Some("json") => hitex_io::nurbs_json::to_nurbs_json(&m.surfaces),
+                Some("igs") | Some("iges") => {
+                    hitex_io::nurbs_json::to_iges(&m.surfaces, &format!("{} exported by hitex", m.name))
+                }
+                _ => {
+                    return Err(CliError::Input(format!(
+                        "{}: the extension must be .igs, .iges or .json",
+                        output.display()
+                    )));
+                }
+            };
+            hitex_io::write_atomic(&output, text.as_bytes())?;
+            println!("wrote {} ({} patches)", output.display(), m.surfaces.len());
             Ok(())
         }
         NurbsCommand::Eval { model, patch, uv, json } => {

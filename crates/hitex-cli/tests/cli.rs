@@ -204,6 +204,16 @@ fn nurbs_commands_work_and_refuse_bad_input() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["normal"].as_array().unwrap().len() == 3 && v["gaussian"].is_number());
 
+    // export and read back, both formats
+    for ext in ["json", "igs"] {
+        let f = d.join(format!("spray.{ext}"));
+        let o = hitex(&["nurbs", "export", "spray", "-o", f.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let o = hitex(&["nurbs", "info", f.to_str().unwrap()]);
+        let s = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success() && s.contains("266 patches") && !s.contains("repaired"), "{s}");
+    }
+
     // bad input: one line, exit 2, naming the file and record
     let bad = d.join("bad.igs");
     let mut text = String::new();

@@ -9,6 +9,7 @@
 pub mod iges;
 pub mod image_io;
 pub mod models;
+pub mod nurbs_json;
 pub mod obj;
 pub mod scene_file;
 

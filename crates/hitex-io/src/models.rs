@@ -156,7 +156,8 @@ pub fn spray() -> Vec<NurbsSurface> {
     out
 }
 
-/// Loads a model by name (`surface`, `teapot`, `spray`) or from an IGES file.
+/// Loads a model by name (`surface`, `teapot`, `spray`), from an IGES file, or
+/// from hitex's native JSON.
 pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
     match spec {
         "teapot" => {
@@ -188,6 +189,10 @@ pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
             let p = Path::new(path);
             let ext = p.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
             match ext.as_deref() {
+                Some("json") => {
+                    let surfaces = crate::nurbs_json::load_nurbs_json(p)?;
+                    Ok(NurbsModel { name: path.to_string(), surfaces, warnings: vec![], repairs: vec![] })
+                }
                 Some("igs") | Some("iges") => {
                     let m = crate::iges::load_iges(p).map_err(|e| IoError::Format {
                         path: p.to_path_buf(),
@@ -204,7 +209,7 @@ pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
                     }
                     Err(IoError::Format {
                         path: p.to_path_buf(),
-                        message: "unsupported NURBS format (expected .igs or .iges)".into(),
+                        message: "unsupported NURBS format (expected .igs, .iges or hitex's .json)".into(),
                     })
                 }
             }

@@ -1,0 +1,260 @@
+//! hitex's native NURBS format (JSON) and an IGES writer, so that models can
+//! be saved, exchanged and read back exactly.
+//!
+//! ```json
+//! {"format": "hitex-nurbs", "version": 1, "patches": [
+//!   {"degree": [3, 3], "count": [4, 4], "knots_u": [...], "knots_v": [...],
+//!    "points": [[x, y, z, w], ...], "range": [[u0, u1], [v0, v1]]}]}
+//! ```
+//! Points are Cartesian with their weight, `j * count_u + i` (i along u).
+
+use crate::IoError;
+use crate::iges::IgesSurface;
+use hitex_core::nurbs::NurbsSurface;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Largest native file accepted, in bytes.
+pub const MAX_JSON_FILE_BYTES: u64 = 1 << 30;
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileJson {
+    format: String,
+    version: u32,
+    patches: Vec<PatchJson>,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PatchJson {
+    degree: [usize; 2],
+    count: [usize; 2],
+    knots_u: Vec<f64>,
+    knots_v: Vec<f64>,
+    points: Vec<[f64; 4]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    range: Option<[[f64; 2]; 2]>,
+}
+
+/// Reads a native JSON model.
+pub fn load_nurbs_json(path: &Path) -> Result<Vec<IgesSurface>, IoError> {
+    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+    let meta = std::fs::metadata(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
+    if meta.len() > MAX_JSON_FILE_BYTES {
+        return Err(fmt(format!("file of {} bytes exceeds the {MAX_JSON_FILE_BYTES}-byte limit", meta.len())));
+    }
+    let text = std::fs::read_to_string(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
+    parse_nurbs_json(&text).map_err(fmt)
+}
+
+/// Parses native JSON text; errors name the patch and field.
+pub fn parse_nurbs_json(text: &str) -> Result<Vec<IgesSurface>, String> {
+    let f: FileJson =
+        serde_json::from_str(text).map_err(|e| format!("line {}, column {}: {e}", e.line(), e.column()))?;
+    if f.format != "hitex-nurbs" {
+        return Err(format!("format is '{}', expected 'hitex-nurbs'", f.format));
+    }
+    if f.version != 1 {
+        return Err(format!("version {} is not supported (this reader knows version 1)", f.version));
+    }
+    if f.patches.is_empty() {
+        return Err("the file has no patches".into());
+    }
+    let mut out = Vec::with_capacity(f.patches.len());
+    for (k, p) in f.patches.into_iter().enumerate() {
+        let s = NurbsSurface::new(p.degree[0], p.degree[1], p.count[0], p.count[1], p.knots_u, p.knots_v, p.points)
+            .map_err(|e| format!("patch {k}: {e}"))?;
+        let dom = s.domain();
+        let range = match p.range {
+            None => dom,
+            Some([[u0, u1], [v0, v1]]) => {
+                let ok = [u0, u1, v0, v1].iter().all(|x| x.is_finite())
+                    && dom.0.0 <= u0
+                    && u0 < u1
+                    && u1 <= dom.0.1
+                    && dom.1.0 <= v0
+                    && v0 < v1
+                    && v1 <= dom.1.1;
+                if !ok {
+                    return Err(format!(
+                        "patch {k}: range [[{u0}, {u1}], [{v0}, {v1}]] is not inside the knot domain {dom:?}"
+                    ));
+                }
+                ((u0, u1), (v0, v1))
+            }
+        };
+        out.push(IgesSurface { surface: s, range, directory_entry: k + 1 });
+    }
+    Ok(out)
+}
+
+/// Native JSON text of a model.
+pub fn to_nurbs_json(surfaces: &[IgesSurface]) -> String {
+    let f = FileJson {
+        format: "hitex-nurbs".into(),
+        version: 1,
+        patches: surfaces
+            .iter()
+            .map(|p| PatchJson {
+                degree: [p.surface.degree_u, p.surface.degree_v],
+                count: [p.surface.count_u, p.surface.count_v],
+                knots_u: p.surface.knots_u.clone(),
+                knots_v: p.surface.knots_v.clone(),
+                points: p.surface.points.clone(),
+                range: Some([[p.range.0.0, p.range.0.1], [p.range.1.0, p.range.1.1]]),
+            })
+            .collect(),
+    };
+    serde_json::to_string(&f).unwrap_or_default()
+}
+
+/// IGES 5.3 text holding one entity 128 per surface (full-precision reals).
+pub fn to_iges(surfaces: &[IgesSurface], description: &str) -> String {
+    fn lines_of(data: &str, width: usize) -> Vec<String> {
+        // break at delimiters so that no number is split
+        let mut out = Vec::new();
+        let mut cur = String::new();
+        for tok in data.split_inclusive([',', ';']) {
+            if cur.len() + tok.len() > width && !cur.is_empty() {
+                out.push(std::mem::take(&mut cur));
+            }
+            cur.push_str(tok);
+        }
+        if !cur.is_empty() {
+            out.push(cur);
+        }
+        out
+    }
+    let mut s = format!("{:<72}S{:>7}\n", description.chars().take(72).collect::<String>(), 1);
+    let global = "1H,,1H;,5Hhitex,9Hmodel.igs,5Hhitex,5Hhitex,32,38,6,308,15,5Hhitex,1.0,2,2HMM,1,1.0,15H20260101.000000,1e-09,1000.0,5Hhitex,5Hhitex,11,0;";
+    let glines = lines_of(global, 72);
+    for (i, l) in glines.iter().enumerate() {
+        s += &format!("{l:<72}G{:>7}\n", i + 1);
+    }
+    let mut dir = String::new();
+    let mut par = String::new();
+    let mut pline = 1usize;
+    for (k, p) in surfaces.iter().enumerate() {
+        let n = &p.surface;
+        let de = 2 * k + 1;
+        let mut fields = vec![
+            "128".to_string(),
+            (n.count_u - 1).to_string(),
+            (n.count_v - 1).to_string(),
+            n.degree_u.to_string(),
+            n.degree_v.to_string(),
+            "0".into(),
+            "0".into(),
+            (if n.is_polynomial() { "1" } else { "0" }).into(),
+            "0".into(),
+            "0".into(),
+        ];
+        fields.extend(n.knots_u.iter().map(|x| format!("{x:?}")));
+        fields.extend(n.knots_v.iter().map(|x| format!("{x:?}")));
+        fields.extend(n.points.iter().map(|c| format!("{:?}", c[3])));
+        for c in &n.points {
+            fields.extend([0, 1, 2].map(|t| format!("{:?}", c[t])));
+        }
+        fields.extend([p.range.0.0, p.range.0.1, p.range.1.0, p.range.1.1].map(|x| format!("{x:?}")));
+        let record = fields.join(",") + ";";
+        let lines = lines_of(&record, 64);
+        dir += &format!(
+            "{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}D{:>7}\n",
+            128, pline, 0, 1, 0, 0, 0, 0, "00010000", de
+        );
+        dir += &format!(
+            "{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}D{:>7}\n",
+            128,
+            0,
+            0,
+            lines.len(),
+            0,
+            "",
+            "",
+            "",
+            0,
+            de + 1
+        );
+        for l in lines {
+            par += &format!("{l:<64}{de:>8}P{pline:>7}\n");
+            pline += 1;
+        }
+    }
+    s += &dir;
+    s += &par;
+    s += &format!(
+        "{:<72}T{:>7}\n",
+        format!("S{:>7}G{:>7}D{:>7}P{:>7}", 1, glines.len(), 2 * surfaces.len(), pline - 1),
+        1
+    );
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::iges::parse_iges;
+
+    fn teapot() -> Vec<IgesSurface> {
+        parse_iges(crate::models::TEAPOT_IGES, "teapot").unwrap().surfaces
+    }
+
+    #[test]
+    fn json_round_trip_is_exact() {
+        let a = teapot();
+        let b = parse_nurbs_json(&to_nurbs_json(&a)).unwrap();
+        assert_eq!(a.len(), b.len());
+        for (x, y) in a.iter().zip(&b) {
+            assert_eq!(x.surface, y.surface);
+            assert_eq!(x.range, y.range);
+        }
+    }
+
+    #[test]
+    fn iges_round_trip_is_exact_and_needs_no_repair() {
+        let mut a = teapot();
+        a.extend(crate::models::spray().into_iter().take(3).map(|s| {
+            let range = s.domain();
+            IgesSurface { surface: s, range, directory_entry: 0 }
+        }));
+        let text = to_iges(&a, "round trip");
+        let m = parse_iges(&text, "rt.igs").unwrap();
+        assert!(m.repairs.is_empty(), "{:?}", m.repairs);
+        assert_eq!(m.surfaces.len(), a.len());
+        for (x, y) in a.iter().zip(&m.surfaces) {
+            assert_eq!(x.surface, y.surface);
+        }
+    }
+
+    #[test]
+    fn malformed_json_names_patch_and_field() {
+        let cases = [
+            ("{", "line 1"),
+            (r#"{"format":"other","version":1,"patches":[]}"#, "expected 'hitex-nurbs'"),
+            (r#"{"format":"hitex-nurbs","version":9,"patches":[]}"#, "version 9"),
+            (r#"{"format":"hitex-nurbs","version":1,"patches":[]}"#, "no patches"),
+            (
+                r#"{"format":"hitex-nurbs","version":1,"patches":[{"degree":[1,1],"count":[2,2],"knots_u":[0,0,1,1],"knots_v":[0,0,1,1],"points":[[0,0,0,1],[1,0,0,1],[0,1,0,1],[1,1,0,0]]}]}"#,
+                "patch 0: control point (1, 1)",
+            ),
+            (
+                r#"{"format":"hitex-nurbs","version":1,"patches":[{"degree":[1,1],"count":[2,2],"knots_u":[0,1,0,1],"knots_v":[0,0,1,1],"points":[[0,0,0,1],[1,0,0,1],[0,1,0,1],[1,1,0,1]]}]}"#,
+                "patch 0: u knots",
+            ),
+            (
+                r#"{"format":"hitex-nurbs","version":1,"patches":[{"degree":[1,1],"count":[2,2],"knots_u":[0,0,1,1],"knots_v":[0,0,1,1],"points":[[0,0,0,1]]}]}"#,
+                "patch 0",
+            ),
+            (
+                r#"{"format":"hitex-nurbs","version":1,"patches":[{"degree":[1,1],"count":[2,2],"knots_u":[0,0,1,1],"knots_v":[0,0,1,1],"points":[[0,0,0,1],[1,0,0,1],[0,1,0,1],[1,1,0,1]],"range":[[0,2],[0,1]]}]}"#,
+                "range",
+            ),
+            (r#"{"format":"hitex-nurbs","version":1,"patches":[],"extra":1}"#, "extra"),
+        ];
+        for (text, needle) in cases {
+            let e = parse_nurbs_json(text).unwrap_err();
+            assert!(e.contains(needle), "{text}: {e}");
+        }
+    }
+}
