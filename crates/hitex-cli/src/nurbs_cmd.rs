@@ -130,7 +130,12 @@ fn parse_uv(s: &str) -> Result<(f64, f64), String> {
 
 /// Prepares a model for rendering.
 pub fn prepare(model: &NurbsModel, density: u32) -> PreparedNurbs {
-    PreparedNurbs::new(model.nurbs(), &model.ranges(), density)
+    let mut p = PreparedNurbs::new(model.nurbs(), &model.ranges(), density);
+    if model.surfaces.iter().any(|s| !s.trim.is_empty()) {
+        let trims: Vec<_> = model.surfaces.iter().map(|s| s.trim.clone()).collect();
+        p.set_trims(&trims);
+    }
+    p
 }
 
 /// Runs a `hitex nurbs` subcommand.
@@ -206,6 +211,10 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                     s.range.0,
                     s.range.1
                 );
+                if !s.trim.is_empty() {
+                    let pts: usize = s.trim.iter().map(Vec::len).sum();
+                    println!("             trimmed by {} loops ({pts} points in parameter space)", s.trim.len());
+                }
             }
             let d: Vec<String> = degrees.iter().map(|((p, q), c)| format!("{p}×{q}: {c}")).collect();
             println!("degrees: {}", d.join(", "));

@@ -204,6 +204,26 @@ fn nurbs_commands_work_and_refuse_bad_input() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["normal"].as_array().unwrap().len() == 3 && v["gaussian"].is_number());
 
+    // a trimmed surface (IGES 144/142/126)
+    let holed = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/holed-square.igs");
+    let o = hitex(&["nurbs", "info", holed]);
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && s.contains("trimmed by 2 loops"), "{s}");
+    let o = hitex(&[
+        "nurbs",
+        "render",
+        holed,
+        "--mode",
+        "shaded",
+        "-o",
+        d.join("holed.png").to_str().unwrap(),
+        "--backend",
+        "cpu",
+        "--size",
+        "64x64",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+
     // export and read back, both formats
     for ext in ["json", "igs"] {
         let f = d.join(format!("spray.{ext}"));

@@ -170,7 +170,7 @@ pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
                 .into_iter()
                 .map(|s| {
                     let range = s.domain();
-                    IgesSurface { surface: s, range, directory_entry: 0 }
+                    IgesSurface { surface: s, range, directory_entry: 0, trim: Vec::new() }
                 })
                 .collect();
             Ok(NurbsModel { name: "spray".into(), surfaces, warnings: vec![], repairs: vec![] })
@@ -180,7 +180,7 @@ pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
             let range = s.domain();
             Ok(NurbsModel {
                 name: "surface".into(),
-                surfaces: vec![IgesSurface { surface: s, range, directory_entry: 0 }],
+                surfaces: vec![IgesSurface { surface: s, range, directory_entry: 0, trim: Vec::new() }],
                 warnings: vec![],
                 repairs: vec![],
             })

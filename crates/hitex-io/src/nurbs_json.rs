@@ -84,7 +84,7 @@ pub fn parse_nurbs_json(text: &str) -> Result<Vec<IgesSurface>, String> {
                 ((u0, u1), (v0, v1))
             }
         };
-        out.push(IgesSurface { surface: s, range, directory_entry: k + 1 });
+        out.push(IgesSurface { surface: s, range, directory_entry: k + 1, trim: Vec::new() });
     }
     Ok(out)
 }
@@ -216,7 +216,7 @@ mod tests {
         let mut a = teapot();
         a.extend(crate::models::spray().into_iter().take(3).map(|s| {
             let range = s.domain();
-            IgesSurface { surface: s, range, directory_entry: 0 }
+            IgesSurface { surface: s, range, directory_entry: 0, trim: Vec::new() }
         }));
         let text = to_iges(&a, "round trip");
         let m = parse_iges(&text, "rt.igs").unwrap();

@@ -22,6 +22,8 @@ struct Frame {
 @group(0) @binding(1) var knots_u: texture_2d<f32>;
 @group(0) @binding(2) var knots_v: texture_2d<f32>;
 @group(0) @binding(3) var control: texture_2d<f32>;
+// trimming edges: row per patch, texel 0 = (count, 0, 0, 0), then (u0, v0, u1, v1)
+@group(0) @binding(4) var trims: texture_2d<f32>;
 
 struct VsIn {
     @location(0) position: vec3<f32>,
@@ -393,6 +395,25 @@ fn highlight(p: vec3<f32>, n: vec3<f32>, e: vec3<f32>, origin: vec3<f32>, spacin
     return vec3<f32>(0.08, 0.1, 0.16);
 }
 
+// even–odd rule over the patch's trimming edges
+fn trimmed_away(pid: i32, u: f32, v: f32) -> bool {
+    let n = i32(textureLoad(trims, vec2<i32>(0, pid), 0).x);
+    if n == 0 {
+        return false;
+    }
+    var inside = false;
+    for (var i = 1; i <= n; i = i + 1) {
+        let e = textureLoad(trims, vec2<i32>(i, pid), 0);
+        if (e.y > v) != (e.w > v) {
+            let x = e.x + (v - e.y) * (e.z - e.x) / (e.w - e.y);
+            if u < x {
+                inside = !inside;
+            }
+        }
+    }
+    return !inside;
+}
+
 fn on_boundary(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> bool {
     let head = textureLoad(control, vec2<i32>(0, pid), 0);
     let u0 = knot(0, pid, i32(head.x));
@@ -424,6 +445,10 @@ fn fs_main(in: VsOut) -> FsOut {
     // fine derivatives for the boundary overlay, taken in uniform control flow
     let fu = abs(dpdxFine(in.u)) + abs(dpdyFine(in.u));
     let fv = abs(dpdxFine(in.v)) + abs(dpdyFine(in.v));
+    // trimmed away: discarded
+    if trimmed_away(pid, in.u, in.v) {
+        discard;
+    }
     let second = mode == 3u || mode == 4u;
     // exact point and derivatives
     let e = eval_patch(pid, in.u, in.v, second);

@@ -116,7 +116,18 @@ pub struct PackedNurbs {
     pub control: Vec<[f32; 4]>,
     /// Number of patches (rows).
     pub patches: u32,
+    /// Texels per trim row.
+    pub trim_width: u32,
+    /// Trimming edges in parameter space: texel 0 = (edge count, 0, 0, 0),
+    /// then `(u0, v0, u1, v1)` per edge of every loop (even–odd rule).
+    pub trims: Vec<[f32; 4]>,
 }
+
+/// Trimming loops of one patch (closed polylines in its parameter space).
+pub type TrimLoops = Vec<Vec<[f64; 2]>>;
+
+/// Most trimming edges per patch (the width of the trim texture).
+pub const MAX_TRIM_EDGES: usize = 8191;
 
 impl PackedNurbs {
     /// Packs surfaces row by row.
@@ -144,7 +155,47 @@ impl PackedNurbs {
                 c[1 + i] = p.map(|x| x as f32);
             }
         }
-        Self { knot_width, knots_u, knots_v, cp_width, control, patches: rows as u32 }
+        Self {
+            knot_width,
+            knots_u,
+            knots_v,
+            cp_width,
+            control,
+            patches: rows as u32,
+            trim_width: 1,
+            trims: vec![[0.0; 4]; rows.max(1)],
+        }
+    }
+
+    /// Packs trimming loops, one row per patch (patches beyond `trims` are untrimmed).
+    /// Loops with more than [`MAX_TRIM_EDGES`] edges in total are thinned evenly.
+    pub fn set_trims(&mut self, trims: &[TrimLoops]) {
+        let rows = self.patches as usize;
+        let edges: Vec<Vec<[f32; 4]>> = (0..rows)
+            .map(|k| {
+                let loops = trims.get(k).map(Vec::as_slice).unwrap_or(&[]);
+                let total: usize = loops.iter().map(|l| l.len().saturating_sub(1)).sum();
+                let step = total.div_ceil(MAX_TRIM_EDGES).max(1);
+                let mut e = Vec::new();
+                for l in loops {
+                    let pts: Vec<[f64; 2]> = l.iter().step_by(step).copied().chain(l.last().copied()).collect();
+                    for w in pts.windows(2) {
+                        if w[0] != w[1] {
+                            e.push([w[0][0] as f32, w[0][1] as f32, w[1][0] as f32, w[1][1] as f32]);
+                        }
+                    }
+                }
+                e
+            })
+            .collect();
+        let width = edges.iter().map(|e| e.len() + 1).max().unwrap_or(1);
+        let mut t = vec![[0.0f32; 4]; width * rows.max(1)];
+        for (k, e) in edges.iter().enumerate() {
+            t[k * width] = [e.len() as f32, 0.0, 0.0, 0.0];
+            t[k * width + 1..k * width + 1 + e.len()].copy_from_slice(e);
+        }
+        self.trim_width = width as u32;
+        self.trims = t;
     }
 }
 
@@ -302,6 +353,12 @@ impl PreparedNurbs {
             self.id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
         count
+    }
+
+    /// Trims patches by loops in their parameter space (see [`PackedNurbs::set_trims`]).
+    pub fn set_trims(&mut self, trims: &[TrimLoops]) {
+        self.packed.set_trims(trims);
+        self.id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     }
 
     /// Identity of the uploaded content (geometry and packed textures).

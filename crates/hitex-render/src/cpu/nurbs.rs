@@ -124,6 +124,26 @@ fn sums<const A: usize, const B: usize>(
     a
 }
 
+/// Whether (u, v) is cut away by the patch's trimming loops (even–odd rule
+/// over all edges; untrimmed patches keep everything).
+pub fn trimmed_away(t: &PackedNurbs, patch: usize, u: f32, v: f32) -> bool {
+    let w = t.trim_width as usize;
+    let n = t.trims[patch * w][0] as usize;
+    if n == 0 {
+        return false;
+    }
+    let mut inside = false;
+    for e in &t.trims[patch * w + 1..patch * w + 1 + n] {
+        if (e[1] > v) != (e[3] > v) {
+            let x = e[0] + (v - e[1]) * (e[2] - e[0]) / (e[3] - e[1]);
+            if u < x {
+                inside = !inside;
+            }
+        }
+    }
+    !inside
+}
+
 /// Unit normal `S_u × S_v`, or `fallback` where the cross product vanishes
 /// against the size of the partials (collapsed rows, apexes).
 pub fn exact_normal(e: &Eval, fallback: Vec3) -> Vec3 {
@@ -213,6 +233,10 @@ impl<'a> NurbsProgram<'a> {
         let f = self.frame;
         let patch = (v[5].round().max(0.0) as usize).min(self.packed.patches.saturating_sub(1) as usize);
         let mode = f.params[0];
+        // trimmed away: no colour, no depth (discarded)
+        if trimmed_away(self.packed, patch, v[3], v[4]) {
+            return ([0, 0, 0, 0], f32::NAN);
+        }
         let second = mode == 3 || mode == 4;
         // exact point and derivatives
         let e = eval_packed(self.packed, patch, v[3], v[4], second, f.params[3] & 1 == 1);

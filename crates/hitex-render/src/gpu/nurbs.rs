@@ -61,6 +61,7 @@ impl NurbsGpu {
                 texture_entry(1),
                 texture_entry(2),
                 texture_entry(3),
+                texture_entry(4),
             ],
         });
         let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -206,10 +207,20 @@ impl GpuRenderer {
                 rows,
                 bytemuck::cast_slice(&t.control),
             )?;
+            let tr = float_texture(
+                device,
+                queue,
+                "trims",
+                wgpu::TextureFormat::Rgba32Float,
+                t.trim_width,
+                rows,
+                bytemuck::cast_slice(&t.trims),
+            )?;
             let views = [
                 ku.create_view(&Default::default()),
                 kv.create_view(&Default::default()),
                 cp.create_view(&Default::default()),
+                tr.create_view(&Default::default()),
             ];
             let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("nurbs"),
@@ -219,6 +230,7 @@ impl GpuRenderer {
                     wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&views[0]) },
                     wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&views[1]) },
                     wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&views[2]) },
+                    wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&views[3]) },
                 ],
             });
             let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
