@@ -293,13 +293,14 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
 /// Index of the entity a directory pointer (odd sequence number) names.
 fn entity_at(ptr: &str, count: usize) -> Result<usize, String> {
     let p = num(ptr).ok_or_else(|| format!("pointer '{ptr}' is not a number"))?;
-    if p < 1.0 || p.fract() != 0.0 || (p as usize - 1) / 2 >= count || (p as usize) % 2 == 0 {
+    if p < 1.0 || p.fract() != 0.0 || (p as usize - 1) / 2 >= count || (p as usize).is_multiple_of(2) {
         return Err(format!("pointer {p} names no directory entry"));
     }
     Ok((p as usize - 1) / 2)
 }
 
 type Parsed = Vec<(i64, Vec<String>, String)>;
+type Loops = Vec<Vec<[f64; 2]>>;
 
 /// Entity 144 fields after the type: PTS, N1, N2, PTO, PTI(1..N2).
 /// Returns the base surface's index and the loops in its parameter space.
@@ -308,7 +309,7 @@ fn trimmed_surface(
     parsed: &Parsed,
     surface_of: &std::collections::HashMap<usize, usize>,
     surfaces: &[IgesSurface],
-) -> Result<(usize, Vec<Vec<[f64; 2]>>), String> {
+) -> Result<(usize, Loops), String> {
     let get = |i: usize| f.get(i).copied().ok_or_else(|| format!("record ends before field {}", i + 2));
     let pts = entity_at(get(0)?, parsed.len())?;
     let base =
