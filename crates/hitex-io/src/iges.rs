@@ -413,19 +413,8 @@ fn sample_curve(k: usize, parsed: &Parsed, out: &mut Vec<[f64; 2]>, depth: usize
             hitex_core::nurbs::validate_knots("curve", &knots, kk + 1, m).map_err(|e| e.to_string())?;
             let (t0, t1) = (val(at, "V0").unwrap_or(knots[m]), val(at + 1, "V1").unwrap_or(knots[kk + 1]));
             let samples = (8 * (kk + 1 - m + 1)).clamp(16, 256);
-            for s in 0..=samples {
-                let t = t0 + (t1 - t0) * s as f64 / samples as f64;
-                let span = hitex_core::nurbs::find_span(kk, m, t, &knots);
-                let mut n = [0.0; hitex_core::nurbs::MAX_DEGREE + 1];
-                hitex_core::nurbs::basis_funs(span, t, m, &knots, &mut n);
-                let mut c = [0.0; 3];
-                for r in 0..=m {
-                    let q = pw[span - m + r];
-                    for (ci, qi) in c.iter_mut().zip(q) {
-                        *ci += n[r] * qi;
-                    }
-                }
-                push([c[0] / c[2], c[1] / c[2]]);
+            for p in sample_curve_2d(m, &knots, &pw, t0, t1, samples) {
+                push(p);
             }
         }
         other => {
@@ -433,6 +422,35 @@ fn sample_curve(k: usize, parsed: &Parsed, out: &mut Vec<[f64; 2]>, depth: usize
         }
     }
     Ok(())
+}
+
+/// Samples a rational B-spline curve in the plane (homogeneous `(wx, wy, w)`
+/// control points, validated knots) at `samples + 1` even parameter steps.
+pub(crate) fn sample_curve_2d(
+    m: usize,
+    knots: &[f64],
+    pw: &[[f64; 3]],
+    t0: f64,
+    t1: f64,
+    samples: usize,
+) -> Vec<[f64; 2]> {
+    let n = pw.len() - 1;
+    (0..=samples)
+        .map(|s| {
+            let t = t0 + (t1 - t0) * s as f64 / samples as f64;
+            let span = hitex_core::nurbs::find_span(n, m, t, knots);
+            let mut b = [0.0; hitex_core::nurbs::MAX_DEGREE + 1];
+            hitex_core::nurbs::basis_funs(span, t, m, knots, &mut b);
+            let mut c = [0.0; 3];
+            for r in 0..=m {
+                let q = pw[span - m + r];
+                for (ci, qi) in c.iter_mut().zip(q) {
+                    *ci += b[r] * qi;
+                }
+            }
+            [c[0] / c[2], c[1] / c[2]]
+        })
+        .collect()
 }
 
 fn delimiters(global: &str, repairs: &mut Vec<String>) -> (char, char) {

@@ -11,6 +11,7 @@ pub mod image_io;
 pub mod models;
 pub mod nurbs_json;
 pub mod obj;
+pub mod obj_freeform;
 pub mod scene_file;
 
 pub use iges::{IgesModel, IgesSurface, load_iges, parse_iges};

@@ -156,8 +156,8 @@ pub fn spray() -> Vec<NurbsSurface> {
     out
 }
 
-/// Loads a model by name (`surface`, `teapot`, `spray`), from an IGES file, or
-/// from hitex's native JSON.
+/// Loads a model by name (`surface`, `teapot`, `spray`), from an IGES file, a
+/// Wavefront OBJ free-form file, or hitex's native JSON.
 pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
     match spec {
         "teapot" => {
@@ -189,6 +189,10 @@ pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
             let p = Path::new(path);
             let ext = p.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
             match ext.as_deref() {
+                Some("obj") => {
+                    let surfaces = crate::obj_freeform::load_obj_freeform(p)?;
+                    Ok(NurbsModel { name: path.to_string(), surfaces, warnings: vec![], repairs: vec![] })
+                }
                 Some("json") => {
                     let surfaces = crate::nurbs_json::load_nurbs_json(p)?;
                     Ok(NurbsModel { name: path.to_string(), surfaces, warnings: vec![], repairs: vec![] })
@@ -209,7 +213,8 @@ pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
                     }
                     Err(IoError::Format {
                         path: p.to_path_buf(),
-                        message: "unsupported NURBS format (expected .igs, .iges or hitex's .json)".into(),
+                        message: "unsupported NURBS format (expected .igs, .iges, free-form .obj or hitex's .json)"
+                            .into(),
                     })
                 }
             }
