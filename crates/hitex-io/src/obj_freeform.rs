@@ -14,6 +14,9 @@ use std::path::Path;
 /// Largest OBJ file accepted, in bytes.
 pub const MAX_FREEFORM_FILE_BYTES: u64 = 1 << 30;
 
+/// A `trim`/`hole` statement: whether it is a hole, and its (t0, t1, curve) parts.
+type TrimRef = (bool, Vec<(f64, f64, i64)>);
+
 #[derive(Default)]
 struct Block {
     kind: Kind,
@@ -24,7 +27,8 @@ struct Block {
     cps: Vec<usize>,
     parm_u: Vec<f64>,
     parm_v: Vec<f64>,
-    trims: Vec<(bool, Vec<(f64, f64, i64)>)>,
+    /// (is a hole, [(t0, t1, curve index)])
+    trims: Vec<TrimRef>,
 }
 
 #[derive(Default, PartialEq, Eq, Clone, Copy)]
@@ -149,7 +153,7 @@ pub fn parse_obj_freeform(text: &str) -> Result<Vec<IgesSurface>, String> {
                 }
             }
             "trim" | "hole" => {
-                if args.len() % 3 != 0 || args.is_empty() {
+                if !args.len().is_multiple_of(3) || args.is_empty() {
                     return Err(e(format!("{tag} needs triples u0 u1 curve")));
                 }
                 let mut parts = Vec::new();
