@@ -116,8 +116,13 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
         p.mode = mode;
         let cam = p.camera.orbit(turn);
         let t = Instant::now();
-        let f = r.render_nurbs(&p, &cam, side, side)?;
-        Ok((f, t.elapsed().as_secs_f64() * 1e3))
+        let mut f = r.render_nurbs(&p, &cam, side, side)?;
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        if matches!(mode, NurbsMode::Gauss | NurbsMode::Mean) {
+            let range = if mode == NurbsMode::Gauss { p.curvature_range[0] } else { p.curvature_range[1] };
+            hitex_render::legend::diverging_legend(&mut f, range);
+        }
+        Ok((f, ms))
     };
     let (a, ma) = nurbs(&teapot, NurbsMode::Shaded, 8, 0.0)?;
     let (b, mb) = nurbs(&teapot, NurbsMode::Isophote, 8, 0.0)?;

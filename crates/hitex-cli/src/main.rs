@@ -245,8 +245,10 @@ fn run(cli: Cli) -> Result<(), CliError> {
             let frame = frame?;
             let ms = t.elapsed().as_secs_f64() * 1e3;
             save(&frame, &output)?;
+            let patches =
+                prepared.nurbs.as_ref().map_or(String::new(), |n| format!(", {} NURBS patches", n.patch_count()));
             println!(
-                "wrote {} ({w}x{h}, {} triangles, {}) in {ms:.1} ms",
+                "wrote {} ({w}x{h}, {} triangles{patches}, {}) in {ms:.1} ms",
                 output.display(),
                 prepared.triangle_count(),
                 r.name()

@@ -17,11 +17,11 @@ pub enum NurbsCommand {
         /// Model name or IGES file.
         model: String,
     },
-    /// Write a model as IGES (entity 128) or as hitex's native JSON.
+    /// Write a model as IGES (entity 128), OBJ free-form, or hitex's native JSON.
     Export {
         /// Model name or file.
         model: String,
-        /// Output file: `.igs`/`.iges` or `.json`.
+        /// Output file: `.igs`/`.iges`, `.obj` or `.json`.
         #[arg(short, long)]
         output: PathBuf,
     },
@@ -165,8 +165,12 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             let cam = p.camera.orbit(a.turn.to_radians());
             let mut r = AnyRenderer::open(a.backend.into())?;
             let t = Instant::now();
-            let f = r.render_nurbs(&p, &cam, a.size.0, a.size.1)?;
+            let mut f = r.render_nurbs(&p, &cam, a.size.0, a.size.1)?;
             let ms = t.elapsed().as_secs_f64() * 1e3;
+            if matches!(p.mode, NurbsMode::Gauss | NurbsMode::Mean) {
+                let range = if p.mode == NurbsMode::Gauss { p.curvature_range[0] } else { p.curvature_range[1] };
+                hitex_render::legend::diverging_legend(&mut f, range);
+            }
             save(&f, &a.output)?;
             println!(
                 "wrote {} ({}x{}, {} patches, mode {:?}, {}) in {ms:.1} ms",

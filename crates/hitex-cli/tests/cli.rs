@@ -282,3 +282,17 @@ fn bench_nurbs_json_names_models() {
     assert!(rows.iter().any(|r| r["case"].as_str().unwrap().starts_with("teapot")));
     assert!(rows.iter().any(|r| r["case"].as_str().unwrap().starts_with("surface")));
 }
+
+#[test]
+fn scene_with_nurbs_renders_and_bad_nurbs_entries_are_refused() {
+    let d = tmp("scene-nurbs");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/teapot-on-checker.toml");
+    let out = d.join("t.png");
+    let o = hitex(&["render", scene, "-o", out.to_str().unwrap(), "--backend", "cpu", "--size", "96x54"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(hitex_png_size(&out), (96, 54));
+    bad_scene("nurbs-model", &format!("{CAM}[[nurbs]]\nmodel = \"kettle\"\n"), &["kettle"]);
+    bad_scene("nurbs-mode", &format!("[render]\nnurbs_mode = \"glow\"\n{CAM}"), &["render.nurbs_mode", "glow"]);
+    bad_scene("nurbs-scale", &format!("{CAM}[[nurbs]]\nmodel = \"teapot\"\nscale = [0, 1, 1]\n"), &["nurbs[0].scale"]);
+    bad_scene("nurbs-both", &format!("{CAM}[[nurbs]]\nmodel = \"teapot\"\nfile = \"x.igs\"\n"), &["nurbs[0]"]);
+}

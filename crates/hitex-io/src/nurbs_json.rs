@@ -4,7 +4,8 @@
 //! ```json
 //! {"format": "hitex-nurbs", "version": 1, "patches": [
 //!   {"degree": [3, 3], "count": [4, 4], "knots_u": [...], "knots_v": [...],
-//!    "points": [[x, y, z, w], ...], "range": [[u0, u1], [v0, v1]]}]}
+//!    "points": [[x, y, z, w], ...], "range": [[u0, u1], [v0, v1]],
+//!    "trim": [[[u, v], ...], ...]}]}
 //! ```
 //! Points are Cartesian with their weight, `j * count_u + i` (i along u).
 
@@ -35,6 +36,9 @@ struct PatchJson {
     points: Vec<[f64; 4]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     range: Option<[[f64; 2]; 2]>,
+    /// Trimming loops in parameter space (even–odd rule).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    trim: Vec<Vec<[f64; 2]>>,
 }
 
 /// Reads a native JSON model.
@@ -84,7 +88,12 @@ pub fn parse_nurbs_json(text: &str) -> Result<Vec<IgesSurface>, String> {
                 ((u0, u1), (v0, v1))
             }
         };
-        out.push(IgesSurface { surface: s, range, directory_entry: k + 1, trim: Vec::new() });
+        for (i, l) in p.trim.iter().enumerate() {
+            if l.len() < 3 || l.iter().flatten().any(|x| !x.is_finite()) {
+                return Err(format!("patch {k}: trim loop {i} needs at least three finite points"));
+            }
+        }
+        out.push(IgesSurface { surface: s, range, directory_entry: k + 1, trim: p.trim });
     }
     Ok(out)
 }
@@ -103,6 +112,7 @@ pub fn to_nurbs_json(surfaces: &[IgesSurface]) -> String {
                 knots_v: p.surface.knots_v.clone(),
                 points: p.surface.points.clone(),
                 range: Some([[p.range.0.0, p.range.0.1], [p.range.1.0, p.range.1.1]]),
+                trim: p.trim.clone(),
             })
             .collect(),
     };
@@ -202,12 +212,16 @@ mod tests {
 
     #[test]
     fn json_round_trip_is_exact() {
-        let a = teapot();
+        let mut a = teapot();
+        let holed =
+            crate::iges::load_iges(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/holed-square.igs")).unwrap();
+        a.extend(holed.surfaces);
         let b = parse_nurbs_json(&to_nurbs_json(&a)).unwrap();
         assert_eq!(a.len(), b.len());
         for (x, y) in a.iter().zip(&b) {
             assert_eq!(x.surface, y.surface);
             assert_eq!(x.range, y.range);
+            assert_eq!(x.trim, y.trim);
         }
     }
 

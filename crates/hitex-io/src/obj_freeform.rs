@@ -265,9 +265,87 @@ pub fn parse_obj_freeform(text: &str) -> Result<Vec<IgesSurface>, String> {
     Ok(out)
 }
 
+/// OBJ free-form text of a model: control vertices with weights, one
+/// `cstype rat bspline` surface per patch, and its trimming loops as
+/// degree-1 `curv2d` curves (`trim` for the first loop, `hole` for the others).
+pub fn to_obj_freeform(surfaces: &[IgesSurface]) -> String {
+    use std::fmt::Write;
+    let mut s = String::from("# written by hitex: rational B-spline surfaces\n");
+    let mut vbase = 0usize;
+    let mut vpbase = 0usize;
+    let mut curves = 0usize;
+    for p in surfaces {
+        let n = &p.surface;
+        // trimming loops first: a surface refers to curves defined before it
+        let mut refs = Vec::new();
+        for l in &p.trim {
+            for q in l {
+                let _ = writeln!(s, "vp {:?} {:?}", q[0], q[1]);
+            }
+            let m = l.len();
+            let idx: Vec<String> = (1..=m).map(|k| (vpbase + k).to_string()).collect();
+            let knots: Vec<String> = std::iter::once(0.0)
+                .chain((0..m).map(|k| k as f64))
+                .chain(std::iter::once((m - 1) as f64))
+                .map(|k| format!("{k:?}"))
+                .collect();
+            let _ = writeln!(s, "cstype bspline\ndeg 1\ncurv2d {}\nparm u {}\nend", idx.join(" "), knots.join(" "));
+            vpbase += m;
+            curves += 1;
+            refs.push((curves, (m - 1) as f64));
+        }
+        for c in &n.points {
+            let _ = writeln!(s, "v {:?} {:?} {:?} {:?}", c[0], c[1], c[2], c[3]);
+        }
+        let idx: Vec<String> = (1..=n.points.len()).map(|k| (vbase + k).to_string()).collect();
+        vbase += n.points.len();
+        let ((u0, u1), (v0, v1)) = p.range;
+        let fmt = |k: &[f64]| k.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(" ");
+        let _ = writeln!(s, "cstype rat bspline\ndeg {} {}", n.degree_u, n.degree_v);
+        let _ = writeln!(s, "surf {u0:?} {u1:?} {v0:?} {v1:?} {}", idx.join(" "));
+        let _ = writeln!(s, "parm u {}\nparm v {}", fmt(&n.knots_u), fmt(&n.knots_v));
+        for (k, (c, t1)) in refs.iter().enumerate() {
+            let _ = writeln!(s, "{} 0.0 {t1:?} {c}", if k == 0 { "trim" } else { "hole" });
+        }
+        s.push_str("end\n");
+    }
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn round_trip_keeps_surfaces_exactly_and_trims_on_their_polylines() {
+        let mut model = crate::iges::parse_iges(crate::models::TEAPOT_IGES, "teapot").unwrap().surfaces;
+        let holed =
+            crate::iges::load_iges(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/holed-square.igs")).unwrap();
+        model.extend(holed.surfaces);
+        let back = parse_obj_freeform(&to_obj_freeform(&model)).unwrap();
+        assert_eq!(back.len(), model.len());
+        for (a, b) in model.iter().zip(&back) {
+            assert_eq!(a.surface, b.surface);
+            assert_eq!(a.range, b.range);
+            assert_eq!(a.trim.len(), b.trim.len());
+            for (la, lb) in a.trim.iter().zip(&b.trim) {
+                // every re-sampled point lies on the written polyline
+                for q in lb {
+                    let d = la
+                        .windows(2)
+                        .map(|w| {
+                            let (ax, ay, bx, by) = (w[0][0], w[0][1], w[1][0], w[1][1]);
+                            let (dx, dy) = (bx - ax, by - ay);
+                            let t = (((q[0] - ax) * dx + (q[1] - ay) * dy) / (dx * dx + dy * dy).max(1e-300))
+                                .clamp(0.0, 1.0);
+                            ((ax + t * dx - q[0]).powi(2) + (ay + t * dy - q[1]).powi(2)).sqrt()
+                        })
+                        .fold(f64::INFINITY, f64::min);
+                    assert!(d < 1e-12, "{q:?} is {d} off the loop");
+                }
+            }
+        }
+    }
 
     const QUAD: &str = "# a rational bicubic\nv 0 0 0\nv 1 0 0\nv 2 0 0.5\nv 3 0 0\nv 0 1 0\nv 1 1 1 2\nv 2 1 1\nv 3 1 0\n\
 v 0 2 0\nv 1 2 0.5\nv 2 2 0.3\nv 3 2 0\nv 0 3 0\nv 1 3 0\nv 2 3 0\nv 3 3 0.2\n\

@@ -1,6 +1,7 @@
 //! Scene files on disk.
 
 use crate::{IoError, image_io, obj};
+use hitex_core::scene::desc::LoadedNurbs;
 use hitex_core::scene::{AssetLoader, Mesh, Scene, SceneDesc};
 use hitex_core::texture::{ColorSpace, Image};
 use std::path::{Path, PathBuf};
@@ -32,6 +33,17 @@ impl AssetLoader for FileLoader {
             Some(e) if e == "obj" => obj::load_obj(&p),
             _ => Err(IoError::Format { path: p, message: "unsupported mesh format (expected .obj)".into() }),
         }
+    }
+    fn load_nurbs(&self, spec: &str, is_file: bool) -> Result<LoadedNurbs, IoError> {
+        let spec = if is_file { self.path(spec).to_string_lossy().into_owned() } else { spec.to_string() };
+        if !is_file && !crate::models::MODEL_NAMES.contains(&spec.as_str()) {
+            return Err(IoError::Core(hitex_core::CoreError::InvalidScene {
+                key: "nurbs.model".into(),
+                message: format!("no built-in NURBS model '{spec}' (known: {})", crate::models::MODEL_NAMES.join(", ")),
+            }));
+        }
+        let m = crate::models::load_model(&spec)?;
+        Ok(m.surfaces.into_iter().map(|s| (s.surface, s.range, s.trim)).collect())
     }
 }
 

@@ -11,6 +11,7 @@
 pub mod compare;
 pub mod cpu;
 pub mod gpu;
+pub mod legend;
 pub mod nurbs;
 pub mod prepare;
 

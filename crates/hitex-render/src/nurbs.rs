@@ -38,6 +38,11 @@ pub enum NurbsMode {
 }
 
 impl NurbsMode {
+    /// The mode of a CLI or scene-file name.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.iter().find(|(n, _)| *n == name).map(|(_, m)| *m)
+    }
+
     /// Every mode with its CLI name.
     pub const ALL: [(&'static str, NurbsMode); 8] = [
         ("shaded", NurbsMode::Shaded),
@@ -227,6 +232,8 @@ pub struct PreparedNurbs {
     pub prepared_kernels: bool,
     /// Draw patch boundaries (one pixel wide) over the display mode.
     pub boundaries: bool,
+    /// Direction towards the light; `None`: over the viewer's shoulder.
+    pub light: Option<Vec3>,
     /// Bounding sphere of the tessellation: centre, radius.
     pub bounds: (Vec3, f32),
     id: u64,
@@ -238,12 +245,18 @@ impl PreparedNurbs {
     /// Tessellates every patch over its parameter range into a
     /// `density`×`density` grid and frames the model with a camera.
     pub fn new(surfaces: Vec<NurbsSurface>, ranges: &[ParamRange], density: u32) -> Self {
-        let density = density.clamp(1, 256);
+        let densities = vec![density; surfaces.len()];
+        Self::with_densities(surfaces, ranges, &densities)
+    }
+
+    /// Like [`PreparedNurbs::new`] with a tessellation density per patch.
+    pub fn with_densities(surfaces: Vec<NurbsSurface>, ranges: &[ParamRange], densities: &[u32]) -> Self {
         let mut vertices = Vec::new();
         let mut indices = Vec::new();
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for (k, s) in surfaces.iter().enumerate() {
             let ((u0, u1), (v0, v1)) = ranges.get(k).copied().unwrap_or_else(|| s.domain());
+            let density = densities.get(k).copied().unwrap_or(8).clamp(1, 256);
             let base = vertices.len() as u32;
             for j in 0..=density {
                 for i in 0..=density {
@@ -321,6 +334,7 @@ impl PreparedNurbs {
             background: Vec3::new(0.06, 0.07, 0.09),
             prepared_kernels: true,
             boundaries: false,
+            light: None,
             bounds: (center, radius),
             id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
@@ -372,7 +386,10 @@ impl PreparedNurbs {
         // light over the viewer's shoulder
         let view_dir = (camera.target - camera.position).normalize();
         let right = view_dir.cross(camera.up).normalize_or_zero();
-        let light = (-view_dir + right * 0.4 + camera.up.normalize() * 0.6).normalize();
+        let light = self
+            .light
+            .and_then(|l| l.try_normalize())
+            .unwrap_or_else(|| (-view_dir + right * 0.4 + camera.up.normalize() * 0.6).normalize());
         let range = match self.mode {
             NurbsMode::Gauss => self.curvature_range[0],
             _ => self.curvature_range[1],

@@ -169,6 +169,8 @@ pub struct PreparedScene {
     pub background: Vec3,
     /// Output mode.
     pub mode: RenderMode,
+    /// NURBS patches drawn after the meshes into the same colour and depth.
+    pub nurbs: Option<crate::nurbs::PreparedNurbs>,
     /// Identity of the uploaded content: GPU backends keep uploads per id.
     /// Call [`PreparedScene::touch`] after changing geometry or materials.
     id: u64,
@@ -261,6 +263,7 @@ impl PreparedScene {
             ambient: scene.ambient,
             background: scene.background,
             mode: scene.mode,
+            nurbs: prepare_nurbs(scene),
             id: next_id(),
         }
     }
@@ -295,6 +298,35 @@ impl PreparedScene {
     pub fn triangle_count(&self) -> usize {
         self.indices.len() / 3
     }
+}
+
+/// The scene's NURBS patches, lit by its first directional light (or from
+/// the first point light's direction towards the patches' centre).
+fn prepare_nurbs(scene: &Scene) -> Option<crate::nurbs::PreparedNurbs> {
+    if scene.nurbs.is_empty() {
+        return None;
+    }
+    let surfaces: Vec<_> = scene.nurbs.iter().map(|n| n.surface.clone()).collect();
+    let ranges: Vec<_> = scene.nurbs.iter().map(|n| n.range).collect();
+    let densities: Vec<_> = scene.nurbs.iter().map(|n| n.density).collect();
+    let mut p = crate::nurbs::PreparedNurbs::with_densities(surfaces, &ranges, &densities);
+    if scene.nurbs.iter().any(|n| !n.trim.is_empty()) {
+        let trims: Vec<_> = scene.nurbs.iter().map(|n| n.trim.clone()).collect();
+        p.set_trims(&trims);
+    }
+    p.mode = crate::nurbs::NurbsMode::from_name(&scene.nurbs_mode).unwrap_or_default();
+    p.background = scene.background;
+    p.camera = scene.camera;
+    p.light = scene.lights.iter().find_map(|l| match *l {
+        Light::Directional { direction, .. } => Some(-direction),
+        _ => None,
+    });
+    if p.light.is_none()
+        && let Some(Light::Point { position, .. }) = scene.lights.first()
+    {
+        p.light = Some(*position - p.bounds.0);
+    }
+    Some(p)
 }
 
 /// The background colour as the framebuffer stores it (sRGB-encoded).

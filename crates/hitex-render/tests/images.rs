@@ -101,3 +101,18 @@ fn gl_backend_matches_cpu() {
         assert_images(&format!("{name}-gl"), &g, &c, GPU_VS_CPU);
     }
 }
+
+/// Meshes and NURBS patches in one frame: same camera, same depth buffer.
+#[test]
+fn scene_with_nurbs_agrees_on_both_backends() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/teapot-on-checker.toml");
+    let scene = hitex_io::load_scene(&path).unwrap();
+    assert_eq!(scene.nurbs.len(), 32);
+    let p = PreparedScene::new(&scene);
+    let c = CpuRenderer::new().render_view(&p, &p.camera, W, H).unwrap();
+    let r = reference("teapot-on-checker", &c);
+    assert_images("teapot-on-checker-cpu", &c, &r, CPU_VS_REFERENCE);
+    let Some(mut gpu) = gpu_or_skip("scene_with_nurbs_agrees_on_both_backends") else { return };
+    let g = gpu.render_view(&p, &p.camera, W, H).unwrap();
+    assert_images("teapot-on-checker-gpu", &g, &c, GPU_VS_CPU);
+}

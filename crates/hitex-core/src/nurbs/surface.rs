@@ -223,6 +223,45 @@ impl NurbsSurface {
         Ok(Self { degree_u, degree_v, count_u, count_v, knots_u, knots_v, points })
     }
 
+    /// A rational Bézier patch (`(p+1)×(q+1)` points `(x, y, z, w)`, u fastest)
+    /// as the B-spline it is: clamped knots `0^(p+1) 1^(p+1)` in each direction.
+    pub fn from_bezier(p: usize, q: usize, points: Vec<[f64; 4]>) -> Result<Self, NurbsError> {
+        let clamp = |d: usize| [vec![0.0; d + 1], vec![1.0; d + 1]].concat();
+        Self::new(p, q, p + 1, q + 1, clamp(p), clamp(q), points)
+    }
+
+    /// A sequence of Bézier patches joined along u (each `(p+1)×(q+1)`,
+    /// neighbours sharing their boundary row) as one B-spline surface with
+    /// interior knots of multiplicity p at 1, 2, … (C0 joins, exactly the patches).
+    pub fn from_bezier_strip(p: usize, q: usize, patches: &[Vec<[f64; 4]>]) -> Result<Self, NurbsError> {
+        let n = patches.len();
+        if n == 0 {
+            return Err(NurbsError::Counts { dir: "u", message: "no Bézier patches".into() });
+        }
+        let count_u = n * p + 1;
+        let mut points = vec![[0.0; 4]; count_u * (q + 1)];
+        for (k, b) in patches.iter().enumerate() {
+            if b.len() != (p + 1) * (q + 1) {
+                return Err(NurbsError::Counts {
+                    dir: "u×v",
+                    message: format!("Bézier patch {k} has {} points, needs {}", b.len(), (p + 1) * (q + 1)),
+                });
+            }
+            for j in 0..=q {
+                for i in 0..=p {
+                    points[j * count_u + k * p + i] = b[j * (p + 1) + i];
+                }
+            }
+        }
+        let mut ku = vec![0.0; p + 1];
+        for k in 1..n {
+            ku.extend(std::iter::repeat_n(k as f64, p));
+        }
+        ku.extend(vec![n as f64; p + 1]);
+        let kv = [vec![0.0; q + 1], vec![1.0; q + 1]].concat();
+        Self::new(p, q, count_u, q + 1, ku, kv, points)
+    }
+
     /// Parameter range `((u0, u1), (v0, v1))`.
     pub fn domain(&self) -> ((f64, f64), (f64, f64)) {
         (
@@ -365,6 +404,86 @@ mod tests {
             // curvature of a cylinder: K = 0, |H| = 1/2
             let c = s.curvature(u, 0.37);
             assert!(c.gaussian.abs() < 1e-10 && (c.mean.abs() - 0.5).abs() < 1e-10, "{c:?}");
+        }
+    }
+
+    #[test]
+    fn rational_sphere_points_lie_on_the_sphere() {
+        // a full sphere of radius 2: rational quadratic circle (9 points) swept by a
+        // rational quadratic half-circle meridian (5 points)
+        let w = std::f64::consts::FRAC_1_SQRT_2;
+        let circle = [
+            (1.0, 0.0, 1.0),
+            (1.0, 1.0, w),
+            (0.0, 1.0, 1.0),
+            (-1.0, 1.0, w),
+            (-1.0, 0.0, 1.0),
+            (-1.0, -1.0, w),
+            (0.0, -1.0, 1.0),
+            (1.0, -1.0, w),
+            (1.0, 0.0, 1.0),
+        ];
+        let meridian = [(0.0, -1.0, 1.0), (1.0, -1.0, w), (1.0, 0.0, 1.0), (1.0, 1.0, w), (0.0, 1.0, 1.0)];
+        let mut pts = Vec::new();
+        for &(r, z, wv) in &meridian {
+            for &(x, y, wu) in &circle {
+                pts.push([2.0 * r * x, 2.0 * r * y, 2.0 * z, wu * wv]);
+            }
+        }
+        let ku = vec![0.0, 0.0, 0.0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1.0, 1.0, 1.0];
+        let kv = vec![0.0, 0.0, 0.0, 0.5, 0.5, 1.0, 1.0, 1.0];
+        let s = NurbsSurface::new(2, 2, 9, 5, ku, kv, pts).unwrap();
+        for i in 0..=24 {
+            for j in 0..=24 {
+                let (u, v) = (i as f64 / 24.0, j as f64 / 24.0);
+                let p = s.point(u, v);
+                let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+                assert!((r - 2.0).abs() < 1e-14, "({u}, {v}): r = {r}");
+                // a sphere: K = 1/4 and |H| = 1/2 away from the poles
+                if (0.05..0.95).contains(&v) {
+                    let c = s.curvature(u, v);
+                    assert!((c.gaussian - 0.25).abs() < 1e-9 && (c.mean.abs() - 0.5).abs() < 1e-9, "{c:?}");
+                }
+                // the normal is radial everywhere, poles included (limit normal)
+                let n = s.normal(u, v);
+                let d = (n[0] * p[0] + n[1] * p[1] + n[2] * p[2]).abs() / r;
+                assert!((d - 1.0).abs() < 1e-6, "({u}, {v}): n·p/r = {d}");
+            }
+        }
+    }
+
+    #[test]
+    fn bezier_patches_convert_exactly() {
+        let bez: Vec<[f64; 4]> = (0..16)
+            .map(|k| [(k % 4) as f64, (k / 4) as f64, ((k * 7) % 5) as f64 * 0.3, 1.0 + (k % 3) as f64 * 0.2])
+            .collect();
+        let s = NurbsSurface::from_bezier(3, 3, bez.clone()).unwrap();
+        // de Casteljau in homogeneous space along u then v at (0.3, 0.6)
+        let lerp = |a: [f64; 4], b: [f64; 4], t: f64| [0, 1, 2, 3].map(|i| a[i] + (b[i] - a[i]) * t);
+        let hom: Vec<[f64; 4]> = bez.iter().map(|c| [c[0] * c[3], c[1] * c[3], c[2] * c[3], c[3]]).collect();
+        let casteljau = |pts: &[[f64; 4]], t: f64| {
+            let mut v = pts.to_vec();
+            while v.len() > 1 {
+                v = v.windows(2).map(|w| lerp(w[0], w[1], t)).collect();
+            }
+            v[0]
+        };
+        let rows: Vec<[f64; 4]> = (0..4).map(|j| casteljau(&hom[j * 4..j * 4 + 4], 0.3)).collect();
+        let h = casteljau(&rows, 0.6);
+        let p = s.point(0.3, 0.6);
+        for t in 0..3 {
+            assert!((p[t] - h[t] / h[3]).abs() < 1e-13);
+        }
+        // a strip of two patches sharing a row evaluates each patch on its half
+        let mut b2 = bez.clone();
+        for j in 0..4 {
+            b2[j * 4] = bez[j * 4 + 3];
+        }
+        let strip = NurbsSurface::from_bezier_strip(3, 3, &[bez.clone(), b2.clone()]).unwrap();
+        let second = NurbsSurface::from_bezier(3, 3, b2).unwrap();
+        let (a, b) = (strip.point(1.4, 0.6), second.point(0.4, 0.6));
+        for t in 0..3 {
+            assert!((a[t] - b[t]).abs() < 1e-13);
         }
     }
 

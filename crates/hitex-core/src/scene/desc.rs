@@ -78,7 +78,48 @@ pub struct SceneDesc {
     /// `[[object]]` tables.
     #[serde(default, rename = "object")]
     pub objects: Vec<ObjectDesc>,
+    /// `[[nurbs]]` tables.
+    #[serde(default, rename = "nurbs")]
+    pub nurbs: Vec<NurbsDesc>,
 }
+
+/// `[[nurbs]]`: a NURBS model (`surface`, `teapot`, `spray`) or file (IGES,
+/// OBJ free-form, hitex JSON), placed like an object.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NurbsDesc {
+    /// Built-in model name.
+    pub model: Option<String>,
+    /// File, relative to the scene file.
+    pub file: Option<String>,
+    /// Translation.
+    #[serde(default)]
+    pub translate: [f32; 3],
+    /// Rotation in degrees about x, then y, then z.
+    #[serde(default)]
+    pub rotate: [f32; 3],
+    /// Scale per axis.
+    #[serde(default = "d_white")]
+    pub scale: [f32; 3],
+    /// Tessellation density per patch side (only places fragments).
+    #[serde(default = "d_density")]
+    pub density: u32,
+}
+
+fn d_density() -> u32 {
+    8
+}
+
+fn d_nurbs_mode() -> String {
+    "shaded".into()
+}
+
+/// Display modes a scene may ask of its NURBS patches.
+pub const NURBS_MODES: [&str; 8] =
+    ["shaded", "isophote", "zebra", "highlight", "gauss", "mean", "vertex-normals", "normal"];
+
+/// A NURBS model as a loader returns it: surfaces with parameter ranges and trims.
+pub type LoadedNurbs = Vec<(crate::nurbs::NurbsSurface, ((f64, f64), (f64, f64)), Vec<Vec<[f64; 2]>>)>;
 
 /// `[render]`
 #[derive(Debug, Clone, Deserialize)]
@@ -99,6 +140,9 @@ pub struct RenderDesc {
     /// Output mode.
     #[serde(default)]
     pub mode: RenderMode,
+    /// Display mode of NURBS patches.
+    #[serde(default = "d_nurbs_mode")]
+    pub nurbs_mode: String,
 }
 
 impl Default for RenderDesc {
@@ -109,6 +153,7 @@ impl Default for RenderDesc {
             background: d_background(),
             ambient: d_ambient(),
             mode: RenderMode::Shaded,
+            nurbs_mode: d_nurbs_mode(),
         }
     }
 }
@@ -344,6 +389,8 @@ pub trait AssetLoader {
     fn load_image(&self, path: &str, color_space: ColorSpace) -> Result<Image, Self::Error>;
     /// Reads a mesh file; one mesh per group/object in the file.
     fn load_meshes(&self, path: &str) -> Result<Vec<Mesh>, Self::Error>;
+    /// Reads a NURBS model: a built-in name (`is_file` false) or a file.
+    fn load_nurbs(&self, spec: &str, is_file: bool) -> Result<LoadedNurbs, Self::Error>;
 }
 
 /// A loader for scenes that must not touch the file system (the embedded
@@ -362,6 +409,12 @@ impl AssetLoader for NoFiles {
         Err(CoreError::InvalidScene {
             key: "object.file".into(),
             message: format!("'{path}': this scene may not load files"),
+        })
+    }
+    fn load_nurbs(&self, spec: &str, _: bool) -> Result<LoadedNurbs, CoreError> {
+        Err(CoreError::InvalidScene {
+            key: "nurbs".into(),
+            message: format!("'{spec}': this scene may not load NURBS models"),
         })
     }
 }
@@ -599,7 +652,48 @@ impl SceneDesc {
             }
         }
 
+        // NURBS patches: control points through the object's affine transform (exact)
+        if !NURBS_MODES.contains(&r.nurbs_mode.as_str()) {
+            return Err(scene_err(
+                "render.nurbs_mode".into(),
+                format!("unknown mode '{}' (known: {})", r.nurbs_mode, NURBS_MODES.join(", ")),
+            )
+            .into());
+        }
+        let mut nurbs = Vec::new();
+        for (i, n) in self.nurbs.iter().enumerate() {
+            let k = format!("nurbs[{i}]");
+            let translate = finite3(&format!("{k}.translate"), n.translate)?;
+            let rotate = finite3(&format!("{k}.rotate"), n.rotate)?;
+            let scale = finite3(&format!("{k}.scale"), n.scale)?;
+            if scale.abs().min_element() == 0.0 {
+                return Err(scene_err(format!("{k}.scale"), "a zero scale flattens the model").into());
+            }
+            if n.density == 0 || n.density > 256 {
+                return Err(scene_err(format!("{k}.density"), format!("{} is outside 1..=256", n.density)).into());
+            }
+            let loaded = match (&n.model, &n.file) {
+                (Some(m), None) => loader.load_nurbs(m, false)?,
+                (None, Some(f)) => loader.load_nurbs(f, true)?,
+                _ => return Err(scene_err(k, "give exactly one of 'model' or 'file'").into()),
+            };
+            let rot =
+                Quat::from_euler(EulerRot::XYZ, rotate.x.to_radians(), rotate.y.to_radians(), rotate.z.to_radians());
+            let m = Mat4::from_scale_rotation_translation(scale, rot, translate).as_dmat4();
+            for (mut surface, range, trim) in loaded {
+                for c in &mut surface.points {
+                    let p = m.transform_point3(glam::DVec3::new(c[0], c[1], c[2]));
+                    c[0] = p.x;
+                    c[1] = p.y;
+                    c[2] = p.z;
+                }
+                nurbs.push(super::NurbsObject { surface, range, trim, density: n.density });
+            }
+        }
+
         Ok(Scene {
+            nurbs,
+            nurbs_mode: r.nurbs_mode.clone(),
             camera,
             lights,
             ambient,

@@ -82,6 +82,23 @@ pub struct Scene {
     pub height: u32,
     /// What the fragment program outputs.
     pub mode: RenderMode,
+    /// NURBS patches drawn with per-pixel exact evaluation, in world space.
+    pub nurbs: Vec<NurbsObject>,
+    /// Display mode of every NURBS patch (`shaded`, `isophote`, …).
+    pub nurbs_mode: String,
+}
+
+/// A NURBS patch placed in the scene (control points already transformed).
+#[derive(Debug, Clone)]
+pub struct NurbsObject {
+    /// The surface in world space.
+    pub surface: crate::nurbs::NurbsSurface,
+    /// Parameter range drawn.
+    pub range: ((f64, f64), (f64, f64)),
+    /// Trimming loops in parameter space (empty: untrimmed).
+    pub trim: Vec<Vec<[f64; 2]>>,
+    /// Tessellation density per patch side.
+    pub density: u32,
 }
 
 /// Most lights a scene may hold (the size of the GPU light array).

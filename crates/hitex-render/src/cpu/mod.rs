@@ -40,7 +40,26 @@ impl CpuRenderer {
         let positions: Vec<glam::Vec3> = scene.vertices.iter().map(|v| glam::Vec3::from_array(v.position)).collect();
         let view_proj = glam::Mat4::from_cols_array_2d(&frame.view_proj);
         raster::rasterize(&mut target, view_proj, &positions, &varyings, &scene.indices, &scene.draws, &program);
+        if let Some(n) = &scene.nurbs {
+            Self::raster_nurbs(&mut target, n, camera, width, height);
+        }
         Ok(Frame { width, height, rgba: target.into_rgba() })
+    }
+
+    fn raster_nurbs(
+        target: &mut raster::Target,
+        scene: &crate::nurbs::PreparedNurbs,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+    ) {
+        let frame = scene.frame(camera, width, height);
+        let program = nurbs::NurbsProgram::new(&frame, &scene.packed);
+        let varyings: Vec<[f32; nurbs::VARYINGS]> = scene.vertices.iter().map(nurbs::varyings).collect();
+        let positions: Vec<glam::Vec3> = scene.vertices.iter().map(|v| glam::Vec3::from_array(v.position)).collect();
+        let draws = [crate::prepare::Draw { first_index: 0, index_count: scene.indices.len() as u32, material: 0 }];
+        let view_proj = glam::Mat4::from_cols_array_2d(&frame.view_proj);
+        raster::rasterize(target, view_proj, &positions, &varyings, &scene.indices, &draws, &program);
     }
 }
 
@@ -55,9 +74,7 @@ impl CpuRenderer {
         height: u32,
     ) -> Result<Frame, RenderError> {
         check_size(width, height)?;
-        let frame = scene.frame(camera, width, height);
-        let program = nurbs::NurbsProgram::new(&frame, &scene.packed);
-        let bg = glam::Vec3::from_array([frame.background[0], frame.background[1], frame.background[2]]);
+        let bg = scene.background;
         let clear = [
             hitex_core::texture::linear_to_srgb_u8(bg.x),
             hitex_core::texture::linear_to_srgb_u8(bg.y),
@@ -65,11 +82,7 @@ impl CpuRenderer {
             255,
         ];
         let mut target = raster::Target::new(width, height, clear);
-        let varyings: Vec<[f32; nurbs::VARYINGS]> = scene.vertices.iter().map(nurbs::varyings).collect();
-        let positions: Vec<glam::Vec3> = scene.vertices.iter().map(|v| glam::Vec3::from_array(v.position)).collect();
-        let draws = [crate::prepare::Draw { first_index: 0, index_count: scene.indices.len() as u32, material: 0 }];
-        let view_proj = glam::Mat4::from_cols_array_2d(&frame.view_proj);
-        raster::rasterize(&mut target, view_proj, &positions, &varyings, &scene.indices, &draws, &program);
+        Self::raster_nurbs(&mut target, scene, camera, width, height);
         Ok(Frame { width, height, rgba: target.into_rgba() })
     }
 }

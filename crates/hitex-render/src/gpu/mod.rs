@@ -364,6 +364,9 @@ impl GpuRenderer {
     ) -> Result<Frame, RenderError> {
         self.check_output(width, height)?;
         self.upload(scene)?;
+        if let Some(n) = &scene.nurbs {
+            self.prepare_nurbs(n, camera, width, height)?;
+        }
         self.ensure_target(width, height);
         let frame = scene.frame_uniform(camera, width, height);
         self.ctx.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&frame));
@@ -378,6 +381,9 @@ impl GpuRenderer {
             for d in &scene.draws {
                 pass.set_bind_group(1, &up.material_groups[d.material], &[]);
                 pass.draw_indexed(d.first_index..d.first_index + d.index_count, 0, 0..1);
+            }
+            if scene.nurbs.is_some() {
+                self.draw_nurbs(pass);
             }
         })
     }

@@ -159,19 +159,18 @@ fn float_texture(
 }
 
 impl GpuRenderer {
-    /// Renders a NURBS model seen by `camera` with `nurbs.wgsl` and reads it back.
-    pub fn render_nurbs(
+    /// Uploads a NURBS model (once per content) and writes its frame uniforms
+    /// for `camera`; [`GpuRenderer::draw_nurbs`] then records its draw.
+    pub(crate) fn prepare_nurbs(
         &mut self,
         scene: &PreparedNurbs,
         camera: &Camera,
         width: u32,
         height: u32,
-    ) -> Result<Frame, RenderError> {
-        self.check_output(width, height)?;
+    ) -> Result<(), RenderError> {
         if self.nurbs.is_none() {
             self.nurbs = Some(NurbsGpu::new(&self.ctx.device)?);
         }
-        self.ensure_target(width, height);
         let device = &self.ctx.device;
         let queue = &self.ctx.queue;
         let Some(ng) = self.nurbs.as_mut() else {
@@ -248,24 +247,35 @@ impl GpuRenderer {
         }
         let frame = scene.frame(camera, width, height);
         queue.write_buffer(&ng.frame, 0, bytemuck::bytes_of(&frame));
-        let bg = [
-            hitex_core::texture::linear_to_srgb_u8(frame.background[0]),
-            hitex_core::texture::linear_to_srgb_u8(frame.background[1]),
-            hitex_core::texture::linear_to_srgb_u8(frame.background[2]),
-            255,
-        ];
-        let Some(ng) = self.nurbs.as_ref() else {
-            return Err(RenderError::Gpu(GpuError::Render("NURBS pipeline missing".into())));
-        };
-        let Some(up) = ng.uploaded.as_ref() else {
-            return Err(RenderError::Gpu(GpuError::Render("NURBS data missing after upload".into())));
-        };
-        self.pass_and_read(width, height, bg, |pass| {
+        Ok(())
+    }
+
+    /// Records the draw of the prepared NURBS model into `pass`.
+    pub(crate) fn draw_nurbs(&self, pass: &mut wgpu::RenderPass<'_>) {
+        if let Some(ng) = self.nurbs.as_ref()
+            && let Some(up) = ng.uploaded.as_ref()
+        {
             pass.set_pipeline(&ng.pipeline);
             pass.set_bind_group(0, &up.group, &[]);
             pass.set_vertex_buffer(0, up.vertices.slice(..));
             pass.set_index_buffer(up.indices.slice(..), wgpu::IndexFormat::Uint32);
             pass.draw_indexed(0..up.count, 0, 0..1);
-        })
+        }
+    }
+
+    /// Renders a NURBS model seen by `camera` with `nurbs.wgsl` and reads it back.
+    pub fn render_nurbs(
+        &mut self,
+        scene: &PreparedNurbs,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+    ) -> Result<Frame, RenderError> {
+        self.check_output(width, height)?;
+        self.prepare_nurbs(scene, camera, width, height)?;
+        self.ensure_target(width, height);
+        let e = hitex_core::texture::linear_to_srgb_u8;
+        let bg = [e(scene.background.x), e(scene.background.y), e(scene.background.z), 255];
+        self.pass_and_read(width, height, bg, |pass| self.draw_nurbs(pass))
     }
 }
