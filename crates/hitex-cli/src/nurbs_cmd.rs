@@ -109,8 +109,8 @@ pub struct RenderArgs {
     /// Draw patch boundaries over the display mode.
     #[arg(long)]
     pub boundaries: bool,
-    /// Raise patches below degree 3 to it by exact degree elevation (the
-    /// paper's design: one prepared kernel per degree).
+    /// Raise patches to the nearest prepared degree above them (3 or 5) by
+    /// exact degree elevation (the paper's design: one kernel per prepared degree).
     #[arg(long)]
     pub elevate: bool,
     /// Turn the camera about the model's vertical axis, degrees.
@@ -160,7 +160,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             }
             if a.elevate {
                 let n = p.elevate_to_prepared();
-                println!("elevated {n} patches to degree 3");
+                println!("elevated {n} patches to the nearest prepared degree (3 or 5)");
             }
             let cam = p.camera.orbit(a.turn.to_radians());
             let mut r = AnyRenderer::open(a.backend.into())?;

@@ -208,6 +208,80 @@ fn basis3(dir: i32, pid: i32, span: i32, u: f32, second: bool) -> Basis3 {
     return b;
 }
 
+// the second prepared degree: quintic (twin of basis_ders_fixed::<5, 6>)
+fn deriv5(dir: i32, pid: i32, deg: i32, lower: array<f32, 6>, first: i32) -> array<f32, 6> {
+    var lo = lower;
+    var d: array<f32, 6>;
+    let fdeg = f32(deg);
+    for (var r = 0; r <= deg; r = r + 1) {
+        let i = first + r - 1;
+        var v = 0.0;
+        if r >= 1 {
+            let den = knot(dir, pid, i + deg) - knot(dir, pid, i);
+            if den > 0.0 { v = v + lo[r - 1] / den; }
+        }
+        if r < deg {
+            let den = knot(dir, pid, i + deg + 1) - knot(dir, pid, i + 1);
+            if den > 0.0 { v = v - lo[r] / den; }
+        }
+        d[r] = fdeg * v;
+    }
+    return d;
+}
+
+fn basis5(dir: i32, pid: i32, span: i32, u: f32, second: bool) -> Basis {
+    var n: array<f32, 6>;
+    var left: array<f32, 6>;
+    var right: array<f32, 6>;
+    var row_p1: array<f32, 6>;
+    var row_p2: array<f32, 6>;
+    n[0] = 1.0;
+    for (var j = 1; j <= 5; j = j + 1) {
+        left[j] = u - knot(dir, pid, span + 1 - j);
+        right[j] = knot(dir, pid, span + j) - u;
+        var saved = 0.0;
+        for (var r = 0; r < j; r = r + 1) {
+            let temp = n[r] / (right[r + 1] + left[j - r]);
+            n[r] = saved + right[r + 1] * temp;
+            saved = left[j - r] * temp;
+        }
+        n[j] = saved;
+        if j == 3 { row_p2 = n; }
+        if j == 4 { row_p1 = n; }
+    }
+    let d1 = deriv5(dir, pid, 5, row_p1, span - 4);
+    var d2: array<f32, 6>;
+    if second {
+        let e1 = deriv5(dir, pid, 4, row_p2, span - 3);
+        d2 = deriv5(dir, pid, 5, e1, span - 4);
+    }
+    var b: Basis;
+    for (var r = 0; r < 6; r = r + 1) {
+        b.n[r] = n[r];
+        b.d1[r] = d1[r];
+        b.d2[r] = d2[r];
+    }
+    return b;
+}
+
+// the basis of a prepared degree (3 or 5), widened to the loops' arrays
+fn prepared_basis(dir: i32, pid: i32, span: i32, u: f32, p: i32, second: bool) -> Basis {
+    if p == 5 {
+        return basis5(dir, pid, span, u, second);
+    }
+    let b3 = basis3(dir, pid, span, u, second);
+    var b: Basis;
+    var n = b3.n;
+    var d1 = b3.d1;
+    var d2 = b3.d2;
+    for (var r = 0; r < 4; r = r + 1) {
+        b.n[r] = n[r];
+        b.d1[r] = d1[r];
+        b.d2[r] = d2[r];
+    }
+    return b;
+}
+
 struct Sums {
     a: array<vec4<f32>, 6>,
 };
@@ -267,13 +341,22 @@ fn eval_patch(pid: i32, u_in: f32, v_in: f32, second: bool) -> Eval {
     let sv = find_span(1, pid, nv - 1, q, v);
     // basis functions and derivatives (paper's form), then the homogeneous sums
     var sm: Sums;
-    if (frame.params.w & 1u) == 1u && p == 3 && q == 3 {
+    let prep = (frame.params.w & 1u) == 1u;
+    let prepared_pq = prep && (p == 3 || p == 5) && (q == 3 || q == 5);
+    if prep && p == 3 && q == 3 {
         let bu3 = basis3(0, pid, su, u, second);
         let bv3 = basis3(1, pid, sv, v, second);
         sm = sums3(pid, bu3, bv3, nu, su - 3, sv - 3, second);
     } else {
-        let bu = basis(0, pid, su, u, p, second);
-        let bv = basis(1, pid, sv, v, q, second);
+        var bu: Basis;
+        var bv: Basis;
+        if prepared_pq {
+            bu = prepared_basis(0, pid, su, u, p, second);
+            bv = prepared_basis(1, pid, sv, v, q, second);
+        } else {
+            bu = basis(0, pid, su, u, p, second);
+            bv = basis(1, pid, sv, v, q, second);
+        }
         var bun = bu.n;
         var bu1 = bu.d1;
         var bu2 = bu.d2;

@@ -7,8 +7,15 @@ use glam::{Mat4, Vec3};
 use hitex_core::nurbs::NurbsSurface;
 use hitex_core::scene::Camera;
 
-/// The degree with straight-line kernels in both fragment programs.
-pub const PREPARED_DEGREE: usize = 3;
+/// The degrees with straight-line kernels in both fragment programs (the
+/// paper's prepared degrees); others run the any-degree loops, or are raised
+/// to the nearest prepared degree above them by [`PreparedNurbs::elevate_to_prepared`].
+pub const PREPARED_DEGREES: [usize; 2] = [3, 5];
+
+/// The nearest prepared degree at or above `d` (None above the largest).
+pub fn prepared_degree_for(d: usize) -> Option<usize> {
+    PREPARED_DEGREES.iter().copied().find(|&p| p >= d)
+}
 
 /// A patch's parameter range `((u0, u1), (v0, v1))`.
 pub type ParamRange = ((f64, f64), (f64, f64));
@@ -341,29 +348,33 @@ impl PreparedNurbs {
     }
 
     /// The paper's design for shaders without loops: raises every patch whose
-    /// degree is below the prepared degree (3) to it by exact degree elevation,
-    /// so that the prepared bicubic kernels evaluate it. The surfaces, their
-    /// parameterisation and so the tessellation stay the same. Returns how
-    /// many patches were elevated.
+    /// degree lies below a prepared degree (3 or 5) to the nearest one above
+    /// it by exact degree elevation, so that the prepared kernels evaluate it.
+    /// The surfaces, their parameterisation and so the tessellation stay the
+    /// same. Returns how many patches were elevated.
     pub fn elevate_to_prepared(&mut self) -> usize {
         let mut count = 0;
         for s in &mut self.surfaces {
-            if s.degree_u > PREPARED_DEGREE
-                || s.degree_v > PREPARED_DEGREE
-                || (s.degree_u, s.degree_v) == (PREPARED_DEGREE, PREPARED_DEGREE)
-            {
+            let (Some(pu), Some(pv)) = (prepared_degree_for(s.degree_u), prepared_degree_for(s.degree_v)) else {
+                continue;
+            };
+            if (pu, pv) == (s.degree_u, s.degree_v) {
                 continue;
             }
-            while s.degree_u < PREPARED_DEGREE {
+            while s.degree_u < pu {
                 *s = s.elevate(true);
             }
-            while s.degree_v < PREPARED_DEGREE {
+            while s.degree_v < pv {
                 *s = s.elevate(false);
             }
             count += 1;
         }
         if count > 0 {
+            // trims stay: elevation keeps the parameterisation
+            let (width, trims) = (self.packed.trim_width, std::mem::take(&mut self.packed.trims));
             self.packed = PackedNurbs::new(&self.surfaces);
+            self.packed.trim_width = width;
+            self.packed.trims = trims;
             self.id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
         count

@@ -204,3 +204,29 @@ fn trimmed_hole_is_cut_on_both_backends() {
         assert_images("trimmed-hole-gpu", &f, &cpu, GPU_VS_CPU_ALIASED);
     }
 }
+
+#[test]
+fn second_prepared_degree_and_elevation_to_the_nearest_prepared_degree() {
+    let cpu = CpuRenderer::new();
+    let mut gpu = gpu_or_skip("second_prepared_degree_and_elevation_to_the_nearest_prepared_degree");
+    for (p, q, nu, nv) in [(5, 5, 8, 7), (3, 5, 6, 7), (5, 3, 7, 5), (4, 2, 6, 4)] {
+        let s = wavy(p, q, nu, nv);
+        let range = [s.domain()];
+        let mut prep = PreparedNurbs::new(vec![s], &range, 6);
+        prep.mode = NurbsMode::Mean;
+        prep.prepared_kernels = false;
+        let generic = cpu.render_nurbs(&prep, &prep.camera, 96, 96).unwrap();
+        prep.prepared_kernels = true;
+        if (p, q) == (4, 2) {
+            // 4 → 5 and 2 → 3: the nearest prepared degrees above
+            assert_eq!(prep.elevate_to_prepared(), 1);
+            assert_eq!((prep.surfaces[0].degree_u, prep.surfaces[0].degree_v), (5, 3));
+        }
+        let fixed = cpu.render_nurbs(&prep, &prep.camera, 96, 96).unwrap();
+        assert_images(&format!("prepared-{p}x{q}-cpu"), &fixed, &generic, GPU_VS_CPU);
+        if let Some(g) = gpu.as_mut() {
+            let f = g.render_nurbs(&prep, &prep.camera, 96, 96).unwrap();
+            assert_images(&format!("prepared-{p}x{q}-gpu"), &f, &fixed, GPU_VS_CPU);
+        }
+    }
+}

@@ -341,6 +341,22 @@ mod fixed_tests {
     use super::*;
 
     #[test]
+    fn fixed_quintic_equals_the_generic_form() {
+        let k = [0.0f32, 0.0, 0.0, 0.0, 0.0, 0.0, 0.3, 0.35, 0.8, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0];
+        for i in 0..=100 {
+            let u = i as f32 / 100.0;
+            let span = find_span(8, 5, u, &k);
+            let a = basis_ders_paper(span, u, 5, &k, true);
+            let b = basis_ders_fixed::<f32, 5, 6>(span, u, &k, true);
+            for d in 0..3 {
+                for r in 0..6 {
+                    assert_eq!(a[d][r], b[d][r], "u {u} d{d} r{r}");
+                }
+            }
+        }
+    }
+
+    #[test]
     fn fixed_cubic_equals_the_generic_form() {
         let k = [0.0f32, 0.0, 0.0, 0.0, 0.2, 0.45, 0.5, 1.0, 1.0, 1.0, 1.0];
         for i in 0..=100 {

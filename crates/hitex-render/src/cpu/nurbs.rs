@@ -62,14 +62,17 @@ pub fn eval_packed(t: &PackedNurbs, patch: usize, u: f32, v: f32, second: bool, 
     let su = find_span(nu - 1, p, u, ku);
     let sv = find_span(nv - 1, q, v, kv);
     // basis functions and derivatives (paper's form), then the homogeneous sums
-    let a = if prepared && p == 3 && q == 3 {
-        let bu = basis_ders_fixed::<f32, 3, 4>(su, u, ku, second);
-        let bv = basis_ders_fixed::<f32, 3, 4>(sv, v, kv, second);
-        sums::<4, 4>(&bu, &bv, 4, 4, cp, nu, su - 3, sv - 3, second)
-    } else {
-        let bu = basis_ders_paper(su, u, p, ku, second);
-        let bv = basis_ders_paper(sv, v, q, kv, second);
-        sums(&bu, &bv, p + 1, q + 1, cp, nu, su - p, sv - q, second)
+    // the prepared degrees (3 and 5) take straight-line kernels, the others the loops
+    let a = match (prepared, p, q) {
+        (true, 3, 3) => fixed::<3, 4, 3, 4>(su, sv, u, v, ku, kv, cp, nu, second),
+        (true, 3, 5) => fixed::<3, 4, 5, 6>(su, sv, u, v, ku, kv, cp, nu, second),
+        (true, 5, 3) => fixed::<5, 6, 3, 4>(su, sv, u, v, ku, kv, cp, nu, second),
+        (true, 5, 5) => fixed::<5, 6, 5, 6>(su, sv, u, v, ku, kv, cp, nu, second),
+        _ => {
+            let bu = basis_ders_paper(su, u, p, ku, second);
+            let bv = basis_ders_paper(sv, v, q, kv, second);
+            sums(&bu, &bv, p + 1, q + 1, cp, nu, su - p, sv - q, second)
+        }
     };
     // rational quotient rule
     let w = a[0].w;
@@ -83,6 +86,25 @@ pub fn eval_packed(t: &PackedNurbs, patch: usize, u: f32, v: f32, second: bool, 
         e.svv = (a[5].truncate() - s_v * (2.0 * a[2].w) - s * a[5].w) / w;
     }
     e
+}
+
+/// Basis and sums for prepared degrees `P`×`Q` (`A = P + 1`, `B = Q + 1`).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn fixed<const P: usize, const A: usize, const Q: usize, const B: usize>(
+    su: usize,
+    sv: usize,
+    u: f32,
+    v: f32,
+    ku: &[f32],
+    kv: &[f32],
+    cp: &[[f32; 4]],
+    nu: usize,
+    second: bool,
+) -> [Vec4; 6] {
+    let bu = basis_ders_fixed::<f32, P, A>(su, u, ku, second);
+    let bv = basis_ders_fixed::<f32, Q, B>(sv, v, kv, second);
+    sums::<A, B>(&bu, &bv, A, B, cp, nu, su - P, sv - Q, second)
 }
 
 /// Homogeneous sums A, A_u, A_v (and A_uu, A_uv, A_vv) over the `nr`×`ns`
