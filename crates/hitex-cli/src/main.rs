@@ -3,6 +3,7 @@
 mod bench;
 mod demo;
 mod nurbs_cmd;
+mod terrain_cmd;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use hitex_core::scene::RenderMode;
@@ -57,6 +58,11 @@ enum Command {
     Nurbs {
         #[command(subcommand)]
         which: nurbs_cmd::NurbsCommand,
+    },
+    /// Terrain: DEM + geospecific imagery, the active area.
+    Terrain {
+        #[command(subcommand)]
+        which: terrain_cmd::TerrainCommand,
     },
     /// List GPU adapters, their features and limits.
     Info,
@@ -256,6 +262,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
             Ok(())
         }
         Command::Nurbs { which } => nurbs_cmd::run(which),
+        Command::Terrain { which } => terrain_cmd::run(which),
         Command::Info => {
             println!("hitex {}", env!("CARGO_PKG_VERSION"));
             println!("cpu backend: {} threads", rayon_threads());

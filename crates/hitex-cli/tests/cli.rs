@@ -296,3 +296,71 @@ fn scene_with_nurbs_renders_and_bad_nurbs_entries_are_refused() {
     bad_scene("nurbs-scale", &format!("{CAM}[[nurbs]]\nmodel = \"teapot\"\nscale = [0, 1, 1]\n"), &["nurbs[0].scale"]);
     bad_scene("nurbs-both", &format!("{CAM}[[nurbs]]\nmodel = \"teapot\"\nfile = \"x.igs\"\n"), &["nurbs[0]"]);
 }
+
+#[test]
+fn terrain_active_area_and_render() {
+    let o = hitex(&["terrain", "active-area"]);
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && s.contains("total: 324 maps"), "{s}");
+    let o = hitex(&["terrain", "active-area", "--fov", "0"]);
+    assert_eq!(o.status.code(), Some(2));
+
+    let dem = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/terrain/olinda_dem_utm25s.tif");
+    let img = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/terrain/L7_ETMs.tif");
+    if !std::path::Path::new(dem).exists() || !std::path::Path::new(img).exists() {
+        eprintln!("SKIPPED terrain render: shared data not found");
+        return;
+    }
+    let d = tmp("terrain");
+    let out = d.join("t.png");
+    let o = hitex(&[
+        "terrain",
+        "render",
+        "--dem",
+        dem,
+        "--image",
+        img,
+        "-o",
+        out.to_str().unwrap(),
+        "--backend",
+        "cpu",
+        "--size",
+        "96x64",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("UTM zone 25S"));
+    assert_eq!(hitex_png_size(&out), (96, 64));
+    // bad input: band out of range, swapped files (an 8-band request), not a GeoTIFF
+    let o = hitex(&[
+        "terrain",
+        "render",
+        "--dem",
+        dem,
+        "--image",
+        img,
+        "--bands",
+        "7,2,1",
+        "-o",
+        out.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(error_lines(&o)[0].contains("band 7"), "{:?}", error_lines(&o));
+    let fake = d.join("fake.tif");
+    std::fs::write(&fake, b"not a tiff").unwrap();
+    let o = hitex(&[
+        "terrain",
+        "render",
+        "--dem",
+        fake.to_str().unwrap(),
+        "--image",
+        img,
+        "-o",
+        out.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(error_lines(&o)[0].contains("fake.tif"));
+}

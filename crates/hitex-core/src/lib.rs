@@ -11,6 +11,7 @@
 pub mod error;
 pub mod nurbs;
 pub mod scene;
+pub mod terrain;
 pub mod texture;
 pub mod tolerance;
 

@@ -106,18 +106,28 @@ pub fn load_geotiff(path: &Path) -> Result<GeoRaster, IoError> {
     if w == 0 || h == 0 || bands == 0 || samples > MAX_SAMPLES {
         return Err(fmt(format!("{w}×{h} pixels of {bands} bands is outside the limit of {MAX_SAMPLES} samples")));
     }
-    let tie = d.get_tag_f64_vec(Tag::ModelTiepointTag).map_err(|_| fmt("no ModelTiepoint tag: not georeferenced".into()))?;
-    let scale = d.get_tag_f64_vec(Tag::ModelPixelScaleTag).map_err(|_| fmt("no ModelPixelScale tag: not georeferenced".into()))?;
-    if tie.len() < 6 || scale.len() < 2 || !tie.iter().chain(&scale).all(|v| v.is_finite()) || scale[0] <= 0.0 || scale[1] <= 0.0 {
+    let tie =
+        d.get_tag_f64_vec(Tag::ModelTiepointTag).map_err(|_| fmt("no ModelTiepoint tag: not georeferenced".into()))?;
+    let scale = d
+        .get_tag_f64_vec(Tag::ModelPixelScaleTag)
+        .map_err(|_| fmt("no ModelPixelScale tag: not georeferenced".into()))?;
+    if tie.len() < 6
+        || scale.len() < 2
+        || !tie.iter().chain(&scale).all(|v| v.is_finite())
+        || scale[0] <= 0.0
+        || scale[1] <= 0.0
+    {
         return Err(fmt(format!("unusable georeferencing: tiepoint {tie:?}, pixel scale {scale:?}")));
     }
     // top-left corner in world coordinates (raster space is pixel-is-area)
     let origin = [tie[3] - tie[0] * scale[0], tie[4] + tie[1] * scale[1]];
-    let nodata = d.get_tag_ascii_string(Tag::GdalNodata).ok().and_then(|s| s.trim().trim_end_matches('\0').parse::<f64>().ok());
+    let nodata =
+        d.get_tag_ascii_string(Tag::GdalNodata).ok().and_then(|s| s.trim().trim_end_matches('\0').parse::<f64>().ok());
     let keys = d.get_tag_u16_vec(Tag::GeoKeyDirectoryTag).unwrap_or_default();
     let key = |id: u16| keys.chunks_exact(4).skip(1).find(|k| k[0] == id && k[1] == 0).map(|k| k[3]);
     let (epsg, projection) = (key(3072), key(3074));
-    let citation = d.get_tag_ascii_string(Tag::Unknown(34737)).ok().map(|s| s.trim_end_matches(['|', '\0']).to_string());
+    let citation =
+        d.get_tag_ascii_string(Tag::Unknown(34737)).ok().map(|s| s.trim_end_matches(['|', '\0']).to_string());
     let data: Vec<f32> = match d.read_image().map_err(|e| fmt(format!("cannot decode the samples: {e}")))? {
         DecodingResult::U8(v) => v.into_iter().map(f32::from).collect(),
         DecodingResult::U16(v) => v.into_iter().map(f32::from).collect(),
@@ -132,7 +142,18 @@ pub fn load_geotiff(path: &Path) -> Result<GeoRaster, IoError> {
     if data.len() as u64 != samples {
         return Err(fmt(format!("{} samples decoded, {samples} declared", data.len())));
     }
-    Ok(GeoRaster { width: w, height: h, bands, data, origin, pixel: [scale[0], scale[1]], nodata, epsg, projection, citation })
+    Ok(GeoRaster {
+        width: w,
+        height: h,
+        bands,
+        data,
+        origin,
+        pixel: [scale[0], scale[1]],
+        nodata,
+        epsg,
+        projection,
+        citation,
+    })
 }
 
 /// Replaces nodata and non-finite samples of band 0 by the mean of their
