@@ -5,6 +5,7 @@ use clap::{Args, Subcommand};
 use glam::{Mat4, Vec2, Vec3};
 use hitex_core::scene::{Camera, Light, Material, Object, RenderMode, Scene};
 use hitex_core::texture::{ColorSpace, Filter, Image, MipPyramid, SamplerOptions, Wrap};
+use hitex_io::dem::load_elevation;
 use hitex_io::geotiff::{GeoRaster, fill_holes, load_geotiff};
 use hitex_render::PreparedScene;
 use std::path::PathBuf;
@@ -36,12 +37,13 @@ pub enum TerrainCommand {
 /// Arguments of `hitex terrain render`.
 #[derive(Args)]
 pub struct RenderArgs {
-    /// Elevation model (GeoTIFF).
+    /// Elevation model: GeoTIFF, SRTM .hgt, ESRI ASCII .asc, numpy .npy/.npz.
     #[arg(long)]
     pub dem: PathBuf,
-    /// Imagery (GeoTIFF, same CRS as the DEM).
+    /// Imagery (GeoTIFF, same CRS as the DEM); without it the terrain is
+    /// coloured by elevation.
     #[arg(long)]
-    pub image: PathBuf,
+    pub image: Option<PathBuf>,
     /// Image bands for red, green, blue (1-based), e.g. Landsat's 3,2,1.
     #[arg(long, default_value = "3,2,1")]
     pub bands: String,
@@ -96,6 +98,20 @@ fn stretched(img: &GeoRaster, bands: [usize; 3]) -> Result<Image, CliError> {
     .map_err(|e| CliError::Input(e.to_string()))
 }
 
+/// Elevation colours (green lowlands, brown hills, white peaks) as a texture.
+fn hypsometric(heights: &[f32], w: u32, h: u32) -> Result<Image, CliError> {
+    let lo = heights.iter().copied().fold(f32::INFINITY, f32::min);
+    let hi = heights.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    let stops = [[40.0, 110.0, 60.0], [150.0, 170.0, 90.0], [140.0, 100.0, 60.0], [245.0, 245.0, 245.0]];
+    Image::from_fn(w, h, ColorSpace::Srgb, |x, y| {
+        let t = ((heights[(y * w + x) as usize] - lo) / (hi - lo).max(1e-6)).clamp(0.0, 1.0) * 2.999;
+        let (i, f) = (t as usize, t.fract());
+        let c = |k: usize| (stops[i][k] + (stops[i + 1][k] - stops[i][k]) * f) as u8;
+        [c(0), c(1), c(2), 255]
+    })
+    .map_err(|e| CliError::Input(e.to_string()))
+}
+
 fn render(a: RenderArgs) -> Result<(), CliError> {
     for (name, v) in
         [("--exaggeration", a.exaggeration), ("--altitude", a.altitude), ("--pitch", a.pitch), ("--heading", a.heading)]
@@ -114,47 +130,53 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
         .collect::<Option<Vec<_>>>()
         .filter(|v| v.len() == 3)
         .ok_or_else(|| CliError::Input(format!("--bands '{}' is not three 1-based band numbers", a.bands)))?;
-    let mut dem = load_geotiff(&a.dem)?;
-    let img = load_geotiff(&a.image)?;
-    if let Some(b) = bands.iter().find(|&&b| b >= img.bands) {
-        return Err(CliError::Input(format!(
-            "{}: band {} requested, the image has {}",
-            a.image.display(),
-            b + 1,
-            img.bands
-        )));
-    }
-    if !dem.same_crs(&img) {
-        return Err(CliError::Input(format!(
-            "{} is in {} but {} is in {}: reproject one of them first",
-            a.dem.display(),
-            dem.crs_name(),
-            a.image.display(),
-            img.crs_name()
-        )));
-    }
+    let mut dem = load_elevation(&a.dem)?;
     let filled = fill_holes(&mut dem);
     if filled > 0 {
         println!("filled {filled} missing elevation samples from their neighbours");
     }
     let heights: Vec<f32> = (0..dem.width * dem.height).map(|i| dem.data[i as usize * dem.bands]).collect();
+    let (pyramid, image_extent) = match &a.image {
+        Some(path) => {
+            let img = load_geotiff(path)?;
+            if let Some(b) = bands.iter().find(|&&b| b >= img.bands) {
+                return Err(CliError::Input(format!(
+                    "{}: band {} requested, the image has {}",
+                    path.display(),
+                    b + 1,
+                    img.bands
+                )));
+            }
+            if !dem.same_crs(&img) {
+                return Err(CliError::Input(format!(
+                    "{} is in {} but {} is in {}: reproject one of them first",
+                    a.dem.display(),
+                    dem.crs_name(),
+                    path.display(),
+                    img.crs_name()
+                )));
+            }
+            (MipPyramid::build(stretched(&img, [bands[0], bands[1], bands[2]])?), img.extent())
+        }
+        None => (MipPyramid::build(hypsometric(&heights, dem.width, dem.height)?), dem.extent()),
+    };
     // texture coordinates of each post from the georeferencing of both rasters
-    let (ix0, ix1, iy0, iy1) = img.extent();
+    let (ix0, ix1, iy0, iy1) = image_extent;
     let uv = |i: usize, j: usize| {
         let wx = dem.origin[0] + (i as f64 + 0.5) * dem.pixel[0];
         let wy = dem.origin[1] - (j as f64 + 0.5) * dem.pixel[1];
         Vec2::new(((wx - ix0) / (ix1 - ix0)) as f32, ((iy1 - wy) / (iy1 - iy0)) as f32)
     };
-    let mesh = hitex_core::terrain::grid_mesh(
-        &heights,
-        dem.width as usize,
-        dem.height as usize,
-        [dem.pixel[0] as f32, dem.pixel[1] as f32],
-        a.exaggeration,
-        uv,
-    )
-    .map_err(|e| CliError::Input(format!("{}: {e}", a.dem.display())))?;
-    let pyramid = MipPyramid::build(stretched(&img, [bands[0], bands[1], bands[2]])?);
+    // post spacing in metres: geographic DEMs (degrees) are converted at their latitude
+    let spacing = if dem.epsg == Some(4326) {
+        let lat = (dem.origin[1] - dem.pixel[1] * dem.height as f64 / 2.0).to_radians();
+        [(dem.pixel[0] * 111_320.0 * lat.cos()) as f32, (dem.pixel[1] * 110_540.0) as f32]
+    } else {
+        [dem.pixel[0] as f32, dem.pixel[1] as f32]
+    };
+    let mesh =
+        hitex_core::terrain::grid_mesh(&heights, dem.width as usize, dem.height as usize, spacing, a.exaggeration, uv)
+            .map_err(|e| CliError::Input(format!("{}: {e}", a.dem.display())))?;
     let mean = heights.iter().map(|&h| h as f64).sum::<f64>() / heights.len() as f64;
     let target = Vec3::new(0.0, mean as f32 * a.exaggeration, 0.0);
     let (p, h) = (a.pitch.to_radians(), a.heading.to_radians());
@@ -189,16 +211,14 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     let ms = t.elapsed().as_secs_f64() * 1e3;
     save(&f, &a.output)?;
     println!(
-        "wrote {} ({}x{}, DEM {}x{} posts at {:.1} m, imagery {}x{} at {:.1} m, {}, {}) in {ms:.1} ms",
+        "wrote {} ({}x{}, DEM {}x{} posts at {:.1} m, {}, {}, {}) in {ms:.1} ms",
         a.output.display(),
         a.size.0,
         a.size.1,
         dem.width,
         dem.height,
-        dem.pixel[0],
-        img.width,
-        img.height,
-        img.pixel[0],
+        spacing[0],
+        if a.image.is_some() { "draped with imagery" } else { "coloured by elevation" },
         dem.crs_name(),
         r.name()
     );

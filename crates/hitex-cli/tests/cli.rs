@@ -329,6 +329,15 @@ fn terrain_active_area_and_render() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stdout).contains("UTM zone 25S"));
+    // an npz DEM without imagery is coloured by elevation
+    let npz = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/terrain/jacksboro_fault_dem.npz");
+    let o =
+        hitex(&["terrain", "render", "--dem", npz, "-o", out.to_str().unwrap(), "--backend", "cpu", "--size", "96x64"]);
+    assert!(
+        o.status.success() && String::from_utf8_lossy(&o.stdout).contains("coloured by elevation"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     assert_eq!(hitex_png_size(&out), (96, 64));
     // bad input: band out of range, swapped files (an 8-band request), not a GeoTIFF
     let o = hitex(&[

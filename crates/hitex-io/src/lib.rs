@@ -6,6 +6,7 @@
 //!
 //! Every error names the file, and the record or key where known.
 
+pub mod dem;
 pub mod geotiff;
 pub mod iges;
 pub mod image_io;
