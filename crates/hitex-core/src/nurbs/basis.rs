@@ -171,11 +171,19 @@ mod tests {
 /// form `nurbs.wgsl` mirrors. Returns `(N, N', N'')` for r = 0..=p; `N''`
 /// only when `second` is set (zeros otherwise).
 pub fn basis_ders_paper<T: Real>(span: usize, u: T, p: usize, knots: &[T], second: bool) -> [[T; W]; 3] {
-    let mut n = [T::ZERO; W];
-    let mut left = [T::ZERO; W];
-    let mut right = [T::ZERO; W];
-    let mut row_p1 = [T::ZERO; W]; // N_{span−p+1+r, p−1}, r = 0..p−1
-    let mut row_p2 = [T::ZERO; W]; // N_{span−p+2+r, p−2}, r = 0..p−2
+    triangle::<T, W>(span, u, p, knots, second)
+}
+
+/// The triangular scheme with eq. (6) derivatives in arrays of `N ≥ p + 1`
+/// entries: shared by the any-degree form (`N` = 16, p at run time) and the
+/// prepared-degree form (`N` = p + 1, p a constant after inlining).
+#[inline(always)]
+fn triangle<T: Real, const N: usize>(span: usize, u: T, p: usize, knots: &[T], second: bool) -> [[T; N]; 3] {
+    let mut n = [T::ZERO; N];
+    let mut left = [T::ZERO; N];
+    let mut right = [T::ZERO; N];
+    let mut row_p1 = [T::ZERO; N]; // N_{span−p+1+r, p−1}, r = 0..p−1
+    let mut row_p2 = [T::ZERO; N]; // N_{span−p+2+r, p−2}, r = 0..p−2
     n[0] = T::ONE;
     if p == 1 {
         row_p1[0] = T::ONE;
@@ -200,13 +208,13 @@ pub fn basis_ders_paper<T: Real>(span: usize, u: T, p: usize, knots: &[T], secon
             row_p1 = n;
         }
     }
-    // first derivatives of degree p from the row of degree p − 1
-    let deriv = |deg: usize, lower: &[T; W], first: usize| -> [T; W] {
-        // lower[r] = N_{first + r, deg − 1}, r = 0..deg − 1; result[r] = N'_{first − 1 + r, deg}, r = 0..=deg
-        let mut d = [T::ZERO; W];
+    // derivatives of degree `deg` from the row of degree deg − 1 (eq. 6):
+    // lower[r] = N_{first + r, deg − 1}; result[r] = N'_{first − 1 + r, deg}
+    let deriv = |deg: usize, lower: &[T; N], first: usize| -> [T; N] {
+        let mut d = [T::ZERO; N];
         let fdeg = T::from_f64(deg as f64);
         for r in 0..=deg {
-            let i = first + r - 1; // index of N_{i, deg}
+            let i = first + r - 1;
             let mut v = T::ZERO;
             if r >= 1 {
                 let den = knots[i + deg] - knots[i];
@@ -224,7 +232,7 @@ pub fn basis_ders_paper<T: Real>(span: usize, u: T, p: usize, knots: &[T], secon
         }
         d
     };
-    let mut out = [[T::ZERO; W]; 3];
+    let mut out = [[T::ZERO; N]; 3];
     out[0] = n;
     out[1] = deriv(p, &row_p1, span + 1 - p);
     if second && p >= 2 {
@@ -274,65 +282,7 @@ pub fn basis_ders_fixed<T: Real, const P: usize, const N: usize>(
     second: bool,
 ) -> [[T; N]; 3] {
     debug_assert_eq!(N, P + 1);
-    let mut n = [T::ZERO; N];
-    let mut left = [T::ZERO; N];
-    let mut right = [T::ZERO; N];
-    let mut row_p1 = [T::ZERO; N];
-    let mut row_p2 = [T::ZERO; N];
-    n[0] = T::ONE;
-    if P == 1 {
-        row_p1[0] = T::ONE;
-    }
-    if P == 2 {
-        row_p2[0] = T::ONE;
-    }
-    for j in 1..=P {
-        left[j] = u - knots[span + 1 - j];
-        right[j] = knots[span + j] - u;
-        let mut saved = T::ZERO;
-        for r in 0..j {
-            let temp = n[r] / (right[r + 1] + left[j - r]);
-            n[r] = saved + right[r + 1] * temp;
-            saved = left[j - r] * temp;
-        }
-        n[j] = saved;
-        if j + 2 == P {
-            row_p2 = n;
-        }
-        if j + 1 == P {
-            row_p1 = n;
-        }
-    }
-    let deriv = |deg: usize, lower: &[T; N], first: usize| -> [T; N] {
-        let mut d = [T::ZERO; N];
-        let fdeg = T::from_f64(deg as f64);
-        for r in 0..=deg {
-            let i = first + r - 1;
-            let mut v = T::ZERO;
-            if r >= 1 {
-                let den = knots[i + deg] - knots[i];
-                if den > T::ZERO {
-                    v += lower[r - 1] / den;
-                }
-            }
-            if r < deg {
-                let den = knots[i + deg + 1] - knots[i + 1];
-                if den > T::ZERO {
-                    v -= lower[r] / den;
-                }
-            }
-            d[r] = fdeg * v;
-        }
-        d
-    };
-    let mut out = [[T::ZERO; N]; 3];
-    out[0] = n;
-    out[1] = deriv(P, &row_p1, span + 1 - P);
-    if second && P >= 2 {
-        let d1 = deriv(P - 1, &row_p2, span + 2 - P);
-        out[2] = deriv(P, &d1, span + 1 - P);
-    }
-    out
+    triangle::<T, N>(span, u, P, knots, second)
 }
 
 #[cfg(test)]

@@ -114,28 +114,8 @@ impl NurbsSurface {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::nurbs::surface::tests::wavy;
     use proptest::prelude::*;
-
-    fn wavy() -> NurbsSurface {
-        let (nu, nv) = (6, 5);
-        let mut pts = Vec::new();
-        for j in 0..nv {
-            for i in 0..nu {
-                let (x, y) = (i as f64, j as f64);
-                pts.push([x, y, (x * 0.9).sin() * (y * 0.7).cos(), 1.0 + 0.3 * ((i + j) % 3) as f64]);
-            }
-        }
-        NurbsSurface::new(
-            3,
-            2,
-            nu,
-            nv,
-            vec![0.0, 0.0, 0.0, 0.0, 0.3, 0.55, 1.0, 1.0, 1.0, 1.0],
-            vec![0.0, 0.0, 0.0, 0.4, 0.6, 1.0, 1.0, 1.0],
-            pts,
-        )
-        .unwrap()
-    }
 
     proptest! {
         #[test]

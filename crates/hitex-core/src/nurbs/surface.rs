@@ -352,7 +352,7 @@ fn clamp_nan(x: f64, lo: f64, hi: f64) -> f64 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use proptest::prelude::*;
 
