@@ -8,6 +8,7 @@
 //!
 //! Everything here is testable with `cargo test` alone and usable as a library.
 
+pub mod btf;
 pub mod error;
 pub mod nurbs;
 pub mod scene;

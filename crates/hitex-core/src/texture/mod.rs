@@ -3,6 +3,7 @@
 //! Data (the [`MipPyramid`]) is kept apart from options ([`SamplerOptions`])
 //! and from the lookup ([`sample`]), as in pbrt's `MIPMap`.
 
+pub mod bc1;
 pub mod image;
 pub mod procedural;
 pub mod pyramid;

@@ -1,0 +1,1471 @@
+//! Index maps grown from a small BTF sample by texture synthesis (seed 000,
+//! refs [4, 5]).
+//!
+//! The paper stores a BTF as a *codebook* of small sample images and an
+//! *index map* telling each texel of the (large) surface which sample texel
+//! to read. A plain tiling `(x mod w, y mod h)` repeats visibly; an index map
+//! grown by texture synthesis rearranges the sample into a non-repeating,
+//! seamless texture of any size — and, since every neighbourhood wraps
+//! around the map's edges, the map itself tiles without a seam.
+//!
+//! * [`features`]: the first principal components of each sample texel's
+//!   appearance over the (view, light) images — what synthesis compares;
+//! * [`synthesize_index`]: patch quilting on the torus, then k-coherence
+//!   correction (Tong et al. 2002, with the candidate sets of Lefebvre &
+//!   Hoppe 2005) on those features, with toroidal neighbourhoods in both the
+//!   sample and the output;
+//! * [`seam_quality`]: how coherent the map is across its wrap-around edges
+//!   compared with its interior.
+
+use super::dataset::{Btf, MAX_BTF_SIDE};
+use crate::CoreError;
+use rayon::prelude::*;
+
+/// Largest index-map side accepted by [`synthesize_index`].
+pub const MAX_INDEX_SIDE: u32 = 8192;
+
+/// Largest (odd) neighbourhood side accepted by [`synthesize_index`].
+pub const MAX_NEIGHBOURHOOD: u32 = 15;
+
+/// Largest number of feature dimensions accepted by [`synthesize_index`].
+pub const MAX_SYNTH_DIMS: usize = 16;
+
+/// Largest k-coherence set accepted by [`synthesize_index`].
+pub const MAX_K: usize = 16;
+
+/// Largest number of correction passes accepted by [`synthesize_index`].
+pub const MAX_PASSES: u32 = 64;
+
+/// Most principal components [`features`] computes (larger requests are clamped).
+pub const MAX_FEATURE_DIMS: usize = 64;
+
+/// Most (view, light) images [`features`] reads per texel.
+pub const MAX_FEATURE_IMAGES: usize = 512;
+
+/// Floats allowed in the PCA data matrix (texels × 3 × images); large samples read fewer images.
+const FEATURE_BUDGET: usize = 1 << 24;
+
+/// Floats allowed for the precomputed sample neighbourhoods; above it they are gathered on the fly.
+const NBHD_BUDGET: usize = 1 << 24;
+
+/// Multiply-adds allowed for the exact k-coherence search (texels² × neighbourhood length).
+const EXACT_KSET_BUDGET: u64 = 1 << 32;
+
+/// Propagation rounds and random probes per round of the approximate k-coherence search.
+const APPROX_ITERS: usize = 4;
+const APPROX_RANDOM: usize = 16;
+
+/// Subspace-iteration limits of the PCA.
+const EIGEN_ITERS: usize = 60;
+const EIGEN_OVERSAMPLE: usize = 4;
+
+/// Initial patches are this fraction of the sample side apart.
+const PATCH_FRACTION: f64 = 0.75;
+
+/// Most source candidates tried for each initial patch.
+const MAX_INIT_CANDIDATES: usize = 1024;
+
+/// Seed of the (sample-only) approximate k-coherence search.
+const KSET_SEED: u64 = 0x6b5f_636f_6865_7265;
+
+// ---------------------------------------------------------------------------
+// index map
+
+/// An index map: for each output texel, the sample texel `[su, sv]` to read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct IndexMap {
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// Row-major entries, `entries[y * width + x] = [su, sv]`.
+    pub entries: Vec<[u16; 2]>,
+}
+
+impl IndexMap {
+    /// Plain tiling of a `sample_w`×`sample_h` sample: entry (x, y) is
+    /// `(x mod sample_w, y mod sample_h)` (sample sides below 1 count as 1).
+    pub fn identity(sample_w: u32, sample_h: u32, width: u32, height: u32) -> IndexMap {
+        let (sw, sh) = (sample_w.clamp(1, 1 << 16), sample_h.clamp(1, 1 << 16));
+        let entries = (0..height).flat_map(|y| (0..width).map(move |x| [(x % sw) as u16, (y % sh) as u16])).collect();
+        IndexMap { width, height, entries }
+    }
+
+    /// The entry at (x, y); coordinates wrap around (the map tiles), and a
+    /// map without entries reads `[0, 0]`.
+    pub fn get(&self, x: u32, y: u32) -> [u16; 2] {
+        if self.width == 0 || self.height == 0 {
+            return [0, 0];
+        }
+        let i = (y % self.height) as usize * self.width as usize + (x % self.width) as usize;
+        self.entries.get(i).copied().unwrap_or([0, 0])
+    }
+
+    /// The paper's visualisation as RGBA8: u → red and v → green, each
+    /// scaled from 0..=side−1 to 0..=255 (entries past the sample clamp to
+    /// 255), blue 0, alpha 255.
+    pub fn to_rgba(&self, sample_w: u32, sample_h: u32) -> Vec<u8> {
+        let scale = |v: u16, side: u32| -> u8 {
+            if side <= 1 {
+                return 0;
+            }
+            let top = side as u64 - 1;
+            ((u64::from(v).min(top) * 255 + top / 2) / top) as u8
+        };
+        self.entries.iter().flat_map(|&[u, v]| [scale(u, sample_w), scale(v, sample_h), 0, 255]).collect()
+    }
+
+    /// Lossless 16-bit RGBA encoding (e.g. for a 16-bit PNG): red = su,
+    /// green = sv, blue 0, alpha 65535.
+    pub fn to_rgba16(&self) -> Vec<u16> {
+        self.entries.iter().flat_map(|&[u, v]| [u, v, 0, u16::MAX]).collect()
+    }
+
+    /// Decodes [`IndexMap::to_rgba16`]: `data` holds `width`×`height` RGBA16
+    /// pixels whose red and green must address a `sample_w`×`sample_h` sample.
+    pub fn from_rgba16(
+        width: u32,
+        height: u32,
+        data: &[u16],
+        sample_w: u32,
+        sample_h: u32,
+    ) -> Result<IndexMap, CoreError> {
+        let bad = |key: &str, message: String| CoreError::OutOfRange { key: key.into(), message };
+        if width == 0 || height == 0 || width > MAX_INDEX_SIDE || height > MAX_INDEX_SIDE {
+            return Err(bad(
+                "index map",
+                format!("{width}x{height} texels; each side must be in 1..={MAX_INDEX_SIDE}"),
+            ));
+        }
+        let want = width as usize * height as usize * 4;
+        if data.len() != want {
+            return Err(bad("index map", format!("{} values; {width}x{height} RGBA pixels need {want}", data.len())));
+        }
+        let mut entries = Vec::with_capacity(want / 4);
+        for (i, px) in data.chunks_exact(4).enumerate() {
+            let (u, v) = (px[0], px[1]);
+            if u32::from(u) >= sample_w || u32::from(v) >= sample_h {
+                return Err(bad(
+                    "index map",
+                    format!(
+                        "texel ({}, {}) reads ({u}, {v}), outside the {sample_w}x{sample_h} sample",
+                        i % width as usize,
+                        i / width as usize
+                    ),
+                ));
+            }
+            entries.push([u, v]);
+        }
+        Ok(IndexMap { width, height, entries })
+    }
+}
+
+// ---------------------------------------------------------------------------
+// features
+
+/// Per-texel feature vectors of a sample: `dims` floats per texel, texels
+/// row-major (`values[(y * width + x) * dims + i]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Features {
+    /// Floats per texel.
+    pub dims: usize,
+    /// `texels × dims` values.
+    pub values: Vec<f32>,
+}
+
+impl Features {
+    /// Number of texels described.
+    pub fn texels(&self) -> usize {
+        self.values.len().checked_div(self.dims).unwrap_or(0)
+    }
+
+    /// The vector of texel `t` (row-major index), empty when out of range.
+    pub fn texel(&self, t: usize) -> &[f32] {
+        let s = t.saturating_mul(self.dims);
+        self.values.get(s..s.saturating_add(self.dims)).unwrap_or(&[])
+    }
+
+    /// Variance of each dimension over the texels.
+    pub fn variances(&self) -> Vec<f32> {
+        let n = self.texels();
+        if n == 0 {
+            return vec![0.0; self.dims];
+        }
+        (0..self.dims)
+            .map(|i| {
+                let col = || self.values.chunks_exact(self.dims).map(move |v| f64::from(v[i]));
+                let mean = col().sum::<f64>() / n as f64;
+                (col().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n as f64) as f32
+            })
+            .collect()
+    }
+}
+
+/// The (view, light) images [`features`] reads for a sample of `n` texels:
+/// every image when they fit the budget, else a views × lights subgrid with
+/// the lights staggered from view to view.
+fn feature_images(btf: &Btf, n: usize) -> Vec<usize> {
+    let dirs = btf.grid().directions().max(1);
+    let total = btf.images();
+    let budget = (FEATURE_BUDGET / (3 * n.max(1))).clamp(1, MAX_FEATURE_IMAGES);
+    if total <= budget {
+        return (0..total).collect();
+    }
+    let views = budget.isqrt().clamp(1, dirs);
+    let lights = (budget / views).clamp(1, dirs);
+    let mut out = Vec::with_capacity(views * lights);
+    for i in 0..views {
+        let view = i * dirs / views;
+        for j in 0..lights {
+            out.push(btf.image_index(view, (j * dirs / lights + i) % dirs));
+        }
+    }
+    out
+}
+
+/// PCA features of every sample texel.
+///
+/// A texel's appearance vector is its RGB (sRGB bytes / 255) in each of the
+/// (view, light) images — all of them, or an evenly spread deterministic
+/// subset of at most [`MAX_FEATURE_IMAGES`] (fewer for samples so large that
+/// texels × 3 × images would pass 16 Mi floats). The vectors are mean-centred
+/// and projected on the first `dims` principal components (clamped to
+/// 1..=[`MAX_FEATURE_DIMS`]), found by subspace iteration with a final
+/// Rayleigh–Ritz step on the Gram matrix of the texel vectors (or on their
+/// covariance, whichever is smaller). Dimension 0 has the largest variance
+/// and variances never increase with the dimension; dimensions past the
+/// rank of the data are zero. Each component's sign makes its largest-magnitude
+/// value positive. Deterministic.
+pub fn features(btf: &Btf, dims: usize) -> Features {
+    let dims = dims.clamp(1, MAX_FEATURE_DIMS);
+    let n = btf.width() as usize * btf.height() as usize;
+    let images = feature_images(btf, n);
+    let l = images.len() * 3;
+    let mut values = vec![0f32; n * dims];
+    if n == 0 || l == 0 {
+        return Features { dims, values };
+    }
+    let ib = btf.image_bytes();
+    let texels = btf.texels();
+    let mut x = vec![0f32; n * l];
+    x.par_chunks_mut(l).enumerate().for_each(|(t, row)| {
+        for (dst, &img) in row.chunks_exact_mut(3).zip(&images) {
+            let o = img * ib + t * 3;
+            if let Some(src) = texels.get(o..o + 3) {
+                for (d, &b) in dst.iter_mut().zip(src) {
+                    *d = f32::from(b) / 255.0;
+                }
+            }
+        }
+    });
+    let mut mean = vec![0f64; l];
+    for row in x.chunks_exact(l) {
+        for (m, &v) in mean.iter_mut().zip(row) {
+            *m += f64::from(v);
+        }
+    }
+    let mean: Vec<f32> = mean.iter().map(|m| (m / n as f64) as f32).collect();
+    x.par_chunks_mut(l).for_each(|row| {
+        for (v, m) in row.iter_mut().zip(&mean) {
+            *v -= m;
+        }
+    });
+
+    let want = dims.min(n).min(l);
+    if n <= l {
+        // Gram matrix X Xᵀ: its eigenvectors u_i give the projections σ_i u_i
+        let g = gram(&x, n, l);
+        let (lambda, vecs) = top_eigen(&g, n, want);
+        for (i, (lam, u)) in lambda.iter().zip(&vecs).enumerate() {
+            let s = lam.max(0.0).sqrt();
+            for (dst, &ut) in values.chunks_exact_mut(dims).zip(u) {
+                dst[i] = (s * ut) as f32;
+            }
+        }
+    } else {
+        // covariance Xᵀ X: its eigenvectors v_i give the projections X v_i
+        let mut xt = vec![0f32; l * n];
+        for (t, row) in x.chunks_exact(l).enumerate() {
+            for (j, &v) in row.iter().enumerate() {
+                xt[j * n + t] = v;
+            }
+        }
+        let c = gram(&xt, l, n);
+        let (_, vecs) = top_eigen(&c, l, want);
+        let vf: Vec<Vec<f32>> = vecs.iter().map(|v| v.iter().map(|&a| a as f32).collect()).collect();
+        values.par_chunks_mut(dims).zip(x.par_chunks(l)).for_each(|(dst, row)| {
+            for (d, v) in dst.iter_mut().zip(&vf) {
+                *d = dot(row, v);
+            }
+        });
+    }
+    // deterministic signs: the largest-magnitude value of each component is positive
+    for i in 0..dims {
+        let mut big = 0f32;
+        for v in values.chunks_exact(dims) {
+            if v[i].abs() > big.abs() {
+                big = v[i];
+            }
+        }
+        if big < 0.0 {
+            for v in values.chunks_exact_mut(dims) {
+                v[i] = -v[i];
+            }
+        }
+    }
+    Features { dims, values }
+}
+
+/// f32 dot product with eight accumulators (vectorises).
+fn dot(a: &[f32], b: &[f32]) -> f32 {
+    let n = a.len().min(b.len());
+    let (ca, ra) = a[..n].as_chunks::<8>();
+    let (cb, rb) = b[..n].as_chunks::<8>();
+    let mut acc = [0f32; 8];
+    for (x, y) in ca.iter().zip(cb) {
+        for ((s, p), q) in acc.iter_mut().zip(x).zip(y) {
+            *s += p * q;
+        }
+    }
+    acc.iter().sum::<f32>() + ra.iter().zip(rb).map(|(p, q)| p * q).sum::<f32>()
+}
+
+/// f64 dot product with four accumulators.
+fn dot64(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (ca, ra) = a[..n].as_chunks::<4>();
+    let (cb, rb) = b[..n].as_chunks::<4>();
+    let mut acc = [0f64; 4];
+    for (x, y) in ca.iter().zip(cb) {
+        for ((s, p), q) in acc.iter_mut().zip(x).zip(y) {
+            *s += p * q;
+        }
+    }
+    acc.iter().sum::<f64>() + ra.iter().zip(rb).map(|(p, q)| p * q).sum::<f64>()
+}
+
+/// Squared Euclidean distance with eight accumulators.
+fn sqdist(a: &[f32], b: &[f32]) -> f32 {
+    let n = a.len().min(b.len());
+    let (ca, ra) = a[..n].as_chunks::<8>();
+    let (cb, rb) = b[..n].as_chunks::<8>();
+    let mut acc = [0f32; 8];
+    for (x, y) in ca.iter().zip(cb) {
+        for ((s, p), q) in acc.iter_mut().zip(x).zip(y) {
+            let d = p - q;
+            *s += d * d;
+        }
+    }
+    acc.iter().sum::<f32>() + ra.iter().zip(rb).map(|(p, q)| (p - q) * (p - q)).sum::<f32>()
+}
+
+/// Squared distance summed `chunk` floats at a time, stopping once it reaches `bound`.
+fn bounded_sqdist(a: &[f32], b: &[f32], chunk: usize, bound: f32) -> f32 {
+    let mut s = 0.0;
+    for (x, y) in a.chunks(chunk.max(1)).zip(b.chunks(chunk.max(1))) {
+        s += sqdist(x, y);
+        if s >= bound {
+            break;
+        }
+    }
+    s
+}
+
+/// The `count`×`count` matrix of dot products of `count` rows of `len` floats.
+fn gram(rows: &[f32], count: usize, len: usize) -> Vec<f64> {
+    let mut g = vec![0f64; count * count];
+    if count == 0 || len == 0 {
+        return g;
+    }
+    g.par_chunks_mut(count).enumerate().for_each(|(i, gi)| {
+        let ri = &rows[i * len..(i + 1) * len];
+        for (gij, rj) in gi.iter_mut().zip(rows.chunks_exact(len)).take(i + 1) {
+            *gij = f64::from(dot(ri, rj));
+        }
+    });
+    for i in 0..count {
+        for j in 0..i {
+            g[j * count + i] = g[i * count + j];
+        }
+    }
+    g
+}
+
+/// A `m`×`m` (row-major) matrix times each column of `q`.
+fn mul_cols(a: &[f64], m: usize, q: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let b = q.len();
+    if b == 0 || m == 0 {
+        return vec![Vec::new(); b];
+    }
+    let mut rows = vec![0f64; m * b];
+    rows.par_chunks_mut(b).zip(a.par_chunks(m)).for_each(|(zi, ai)| {
+        for (z, qc) in zi.iter_mut().zip(q) {
+            *z = dot64(ai, qc);
+        }
+    });
+    (0..b).map(|c| rows.iter().skip(c).step_by(b).copied().collect()).collect()
+}
+
+/// Modified Gram–Schmidt (twice) on the columns; degenerate columns become zero.
+fn orthonormalise(q: &mut [Vec<f64>]) {
+    for c in 0..q.len() {
+        let (done, rest) = q.split_at_mut(c);
+        let Some(v) = rest.first_mut() else { return };
+        for _ in 0..2 {
+            for p in done.iter() {
+                let d = dot64(p, v);
+                if d != 0.0 {
+                    for (x, y) in v.iter_mut().zip(p) {
+                        *x -= d * y;
+                    }
+                }
+            }
+        }
+        let norm = dot64(v, v).sqrt();
+        if norm > 1e-200 && norm.is_finite() {
+            v.iter_mut().for_each(|x| *x /= norm);
+        } else {
+            v.fill(0.0);
+        }
+    }
+}
+
+/// Eigen-decomposition of a symmetric `n`×`n` matrix by cyclic Jacobi
+/// rotations: eigenvalues and the eigenvector matrix (column k = vector k).
+fn jacobi(mut a: Vec<f64>, n: usize) -> (Vec<f64>, Vec<f64>) {
+    let mut v = vec![0f64; n * n];
+    for i in 0..n {
+        v[i * n + i] = 1.0;
+    }
+    for _sweep in 0..64 {
+        let mut off = 0.0;
+        let mut diag = 0.0;
+        for i in 0..n {
+            for j in 0..n {
+                let x = a[i * n + j] * a[i * n + j];
+                if i == j {
+                    diag += x;
+                } else {
+                    off += x;
+                }
+            }
+        }
+        if off <= 1e-28 * diag || off < 1e-300 {
+            break;
+        }
+        for p in 0..n {
+            for q in p + 1..n {
+                let apq = a[p * n + q];
+                if apq.abs() < 1e-300 {
+                    continue;
+                }
+                let theta = (a[q * n + q] - a[p * n + p]) / (2.0 * apq);
+                let t = if theta.is_finite() && theta.abs() < 1e150 {
+                    theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt())
+                } else {
+                    0.5 / theta
+                };
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let s = t * c;
+                for k in 0..n {
+                    let (akp, akq) = (a[k * n + p], a[k * n + q]);
+                    a[k * n + p] = c * akp - s * akq;
+                    a[k * n + q] = s * akp + c * akq;
+                }
+                for k in 0..n {
+                    let (apk, aqk) = (a[p * n + k], a[q * n + k]);
+                    a[p * n + k] = c * apk - s * aqk;
+                    a[q * n + k] = s * apk + c * aqk;
+                }
+                for k in 0..n {
+                    let (vkp, vkq) = (v[k * n + p], v[k * n + q]);
+                    v[k * n + p] = c * vkp - s * vkq;
+                    v[k * n + q] = s * vkp + c * vkq;
+                }
+            }
+        }
+    }
+    ((0..n).map(|i| a[i * n + i]).collect(), v)
+}
+
+/// The `want` largest eigenpairs of a symmetric positive semi-definite
+/// `m`×`m` matrix, eigenvalues descending, vectors of unit length (or zero
+/// past the rank): subspace iteration on `want + 4` vectors, then Rayleigh–Ritz.
+fn top_eigen(a: &[f64], m: usize, want: usize) -> (Vec<f64>, Vec<Vec<f64>>) {
+    let want = want.min(m);
+    let b = (want + EIGEN_OVERSAMPLE).min(m);
+    if b == 0 {
+        return (Vec::new(), Vec::new());
+    }
+    let mut q: Vec<Vec<f64>> =
+        (0..b).map(|c| (0..m).map(|i| unit(hash3(0x5ca1_ab1e, c as u64, i as u64)) - 0.5).collect()).collect();
+    orthonormalise(&mut q);
+    let mut prev = vec![f64::NAN; b];
+    for _ in 0..EIGEN_ITERS {
+        let z = mul_cols(a, m, &q);
+        let ritz: Vec<f64> = q.iter().zip(&z).map(|(qc, zc)| dot64(qc, zc)).collect();
+        q = z;
+        orthonormalise(&mut q);
+        let scale = ritz.first().map_or(0.0, |r| r.abs()).max(1e-300);
+        let settled = ritz.iter().zip(&prev).take(want).all(|(r, p)| (r - p).abs() <= 1e-7 * scale);
+        prev = ritz;
+        if settled {
+            break;
+        }
+    }
+    // Rayleigh–Ritz on the final subspace
+    let z = mul_cols(a, m, &q);
+    let mut t = vec![0f64; b * b];
+    for i in 0..b {
+        for j in 0..b {
+            t[i * b + j] = 0.5 * (dot64(&q[i], &z[j]) + dot64(&q[j], &z[i]));
+        }
+    }
+    let (ev, w) = jacobi(t, b);
+    let mut order: Vec<usize> = (0..b).collect();
+    order.sort_by(|&i, &j| ev[j].total_cmp(&ev[i]));
+    let mut lambda = Vec::with_capacity(want);
+    let mut vecs = Vec::with_capacity(want);
+    for &k in order.iter().take(want) {
+        let mut v = vec![0f64; m];
+        for (i, qi) in q.iter().enumerate() {
+            let c = w[i * b + k];
+            for (x, y) in v.iter_mut().zip(qi) {
+                *x += c * y;
+            }
+        }
+        lambda.push(ev[k].max(0.0));
+        vecs.push(v);
+    }
+    (lambda, vecs)
+}
+
+// ---------------------------------------------------------------------------
+// hashing
+
+fn splitmix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+fn hash3(a: u64, b: u64, c: u64) -> u64 {
+    splitmix64(splitmix64(a ^ splitmix64(b)) ^ c)
+}
+
+/// A hash as a float in [0, 1).
+fn unit(h: u64) -> f64 {
+    (h >> 11) as f64 / (1u64 << 53) as f64
+}
+
+// ---------------------------------------------------------------------------
+// synthesis
+
+/// Options of [`synthesize_index`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SynthesisOptions {
+    /// Index-map width in texels, 1..=[`MAX_INDEX_SIDE`].
+    pub width: u32,
+    /// Index-map height in texels, 1..=[`MAX_INDEX_SIDE`].
+    pub height: u32,
+    /// Side of the square neighbourhood compared, odd, 1..=[`MAX_NEIGHBOURHOOD`]
+    /// (1 compares nothing: the initial patches are kept).
+    pub neighbourhood: u32,
+    /// Size of each sample texel's k-coherence set, 1..=[`MAX_K`] (at most
+    /// the number of other sample texels is used).
+    pub k: usize,
+    /// Correction passes, 0..=[`MAX_PASSES`].
+    pub passes: u32,
+    /// Seed of the initial patches.
+    pub seed: u64,
+    /// Principal components per texel compared, 1..=[`MAX_SYNTH_DIMS`].
+    pub dims: usize,
+}
+
+impl Default for SynthesisOptions {
+    fn default() -> Self {
+        Self { width: 256, height: 256, neighbourhood: 5, k: 4, passes: 3, seed: 1, dims: 8 }
+    }
+}
+
+fn out_of_range(key: &str, message: String) -> CoreError {
+    CoreError::OutOfRange { key: key.into(), message }
+}
+
+fn validate(o: &SynthesisOptions) -> Result<(), CoreError> {
+    for (key, v) in [("width", o.width), ("height", o.height)] {
+        if !(1..=MAX_INDEX_SIDE).contains(&v) {
+            return Err(out_of_range(key, format!("{v} texels; 1..={MAX_INDEX_SIDE} are allowed")));
+        }
+    }
+    if o.neighbourhood.is_multiple_of(2) || !(1..=MAX_NEIGHBOURHOOD).contains(&o.neighbourhood) {
+        return Err(out_of_range(
+            "neighbourhood",
+            format!("{}; an odd side in 1..={MAX_NEIGHBOURHOOD} is required", o.neighbourhood),
+        ));
+    }
+    if !(1..=MAX_K).contains(&o.k) {
+        return Err(out_of_range("k", format!("{}; 1..={MAX_K} is allowed", o.k)));
+    }
+    if !(1..=MAX_SYNTH_DIMS).contains(&o.dims) {
+        return Err(out_of_range("dims", format!("{}; 1..={MAX_SYNTH_DIMS} are allowed", o.dims)));
+    }
+    if o.passes > MAX_PASSES {
+        return Err(out_of_range("passes", format!("{}; 0..={MAX_PASSES} are allowed", o.passes)));
+    }
+    Ok(())
+}
+
+/// The sample seen as a torus of feature vectors, with its neighbourhood vectors.
+struct Sample<'a> {
+    w: usize,
+    h: usize,
+    n: usize,
+    d: usize,
+    /// Neighbourhood side.
+    side: usize,
+    /// Neighbourhood offsets (dx, dy), row-major, centre included.
+    offsets: Vec<(i64, i64)>,
+    /// Index of the (0, 0) offset.
+    centre: usize,
+    feats: &'a [f32],
+    /// Precomputed neighbourhood vectors, `n × offsets.len() × d`, when they fit.
+    nbhd: Option<Vec<f32>>,
+}
+
+impl<'a> Sample<'a> {
+    /// The sample, its neighbourhood vectors precomputed when `n × len`
+    /// floats fit `budget`.
+    fn new(w: usize, h: usize, feats: &'a Features, side: usize, budget: usize) -> Self {
+        let r = (side / 2) as i64;
+        let offsets: Vec<(i64, i64)> = (-r..=r).flat_map(|dy| (-r..=r).map(move |dx| (dx, dy))).collect();
+        let centre = offsets.len() / 2;
+        let mut s = Sample { w, h, n: w * h, d: feats.dims, side, offsets, centre, feats: &feats.values, nbhd: None };
+        let len = s.len();
+        if s.n.saturating_mul(len) <= budget {
+            let mut v = vec![0f32; s.n * len];
+            v.par_chunks_mut(len).enumerate().for_each(|(t, dst)| s.gather(t, dst));
+            s.nbhd = Some(v);
+        }
+        s
+    }
+
+    /// Floats in a neighbourhood vector.
+    fn len(&self) -> usize {
+        self.offsets.len() * self.d
+    }
+
+    /// Floats in one neighbourhood row (the early-termination granule).
+    fn chunk(&self) -> usize {
+        self.side * self.d
+    }
+
+    /// Texel `t` moved by (dx, dy) on the torus.
+    fn wrap(&self, t: usize, dx: i64, dy: i64) -> usize {
+        let x = ((t % self.w) as i64 + dx).rem_euclid(self.w as i64) as usize;
+        let y = ((t / self.w) as i64 + dy).rem_euclid(self.h as i64) as usize;
+        y * self.w + x
+    }
+
+    fn feat(&self, t: usize) -> &[f32] {
+        &self.feats[t * self.d..(t + 1) * self.d]
+    }
+
+    fn gather(&self, t: usize, dst: &mut [f32]) {
+        for (block, &(dx, dy)) in dst.chunks_exact_mut(self.d).zip(&self.offsets) {
+            block.copy_from_slice(self.feat(self.wrap(t, dx, dy)));
+        }
+    }
+
+    /// The neighbourhood vector of texel `t` (precomputed, or gathered into `scratch`).
+    fn nbhd<'s>(&'s self, t: usize, scratch: &'s mut [f32]) -> &'s [f32] {
+        let len = self.len();
+        match &self.nbhd {
+            Some(v) => &v[t * len..(t + 1) * len],
+            None => {
+                self.gather(t, scratch);
+                scratch
+            }
+        }
+    }
+
+    /// Neighbourhood distance without the centre texel, stopping at `bound`.
+    fn dist_around(&self, a: &[f32], b: &[f32], bound: f32) -> f32 {
+        let (c0, c1) = (self.centre * self.d, (self.centre + 1) * self.d);
+        let first = bounded_sqdist(&a[..c0], &b[..c0], self.chunk(), bound);
+        if first >= bound {
+            return first;
+        }
+        first + bounded_sqdist(&a[c1..], &b[c1..], self.chunk(), bound - first)
+    }
+}
+
+/// Scratch of a k-coherence search.
+struct KScratch {
+    a: Vec<f32>,
+    b: Vec<f32>,
+    best: Vec<(f32, u32)>,
+}
+
+/// Offers sample texel `c` to the k best neighbours of `t` (sorted, distinct, without `t`).
+fn offer(s: &Sample, a: &[f32], scratch: &mut [f32], best: &mut Vec<(f32, u32)>, k: usize, t: usize, c: usize) {
+    if c == t || best.iter().any(|e| e.1 as usize == c) {
+        return;
+    }
+    let bound = if best.len() >= k { best[k - 1].0 } else { f32::INFINITY };
+    let d = bounded_sqdist(a, s.nbhd(c, scratch), s.chunk(), bound);
+    if d < bound {
+        let pos = best.partition_point(|e| e.0 <= d);
+        best.insert(pos, (d, c as u32));
+        best.truncate(k);
+    }
+}
+
+/// The k-coherence sets: for each sample texel the `k` other texels with the
+/// most similar (toroidal, centre included) neighbourhoods, nearest first.
+/// Exact by exhaustive search when texels² × neighbourhood fits the budget,
+/// else approximate by random probes and coherent propagation (PatchMatch).
+/// Returns the set size used (`k` capped at texels − 1) and the sets.
+fn ksets(s: &Sample, k: usize, exact_budget: u64) -> (usize, Vec<u32>) {
+    let k = k.min(s.n.saturating_sub(1));
+    if k == 0 {
+        return (0, Vec::new());
+    }
+    let len = s.len();
+    let init = || KScratch { a: vec![0.0; len], b: vec![0.0; len], best: Vec::with_capacity(k + 1) };
+    let mut out = vec![0u32; s.n * k];
+    let exact = (s.n as u64).saturating_mul(s.n as u64).saturating_mul(len as u64) <= exact_budget;
+    if exact {
+        out.par_chunks_mut(k).enumerate().for_each_init(init, |scr, (t, dst)| {
+            let KScratch { a, b, best } = scr;
+            best.clear();
+            let a = s.nbhd(t, a);
+            for c in 0..s.n {
+                offer(s, a, b, best, k, t, c);
+            }
+            for (d, e) in dst.iter_mut().zip(best.iter()) {
+                *d = e.1;
+            }
+        });
+        return (k, out);
+    }
+    // approximate: random start, then rounds of propagation from the four
+    // neighbours' sets (shifted back) plus random probes
+    let n = s.n as u64;
+    let mut dist = vec![0f32; s.n * k];
+    for round in 0..=APPROX_ITERS {
+        let (prev, prev_dist) = (out.clone(), dist.clone());
+        out.par_chunks_mut(k).zip(dist.par_chunks_mut(k)).enumerate().for_each_init(init, |scr, (t, (dst, dd))| {
+            let KScratch { a, b, best } = scr;
+            best.clear();
+            let a = s.nbhd(t, a);
+            if round > 0 {
+                best.extend(
+                    prev_dist[t * k..(t + 1) * k].iter().copied().zip(prev[t * k..(t + 1) * k].iter().copied()),
+                );
+                for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
+                    let nt = s.wrap(t, dx, dy);
+                    for &c in &prev[nt * k..(nt + 1) * k] {
+                        offer(s, a, b, best, k, t, s.wrap(c as usize, -dx, -dy));
+                    }
+                }
+            }
+            for j in 0..APPROX_RANDOM + k {
+                let c = (hash3(KSET_SEED ^ round as u64, t as u64, j as u64) % n) as usize;
+                offer(s, a, b, best, k, t, c);
+            }
+            // never short of k (tiny chance of repeated probes)
+            let mut c = t;
+            while best.len() < k {
+                c = (c + 1) % s.n;
+                offer(s, a, b, best, k, t, c);
+            }
+            for ((d, x), e) in dst.iter_mut().zip(dd.iter_mut()).zip(best.iter()) {
+                *d = e.1;
+                *x = e.0;
+            }
+        });
+    }
+    (k, out)
+}
+
+/// Initial map by patch quilting on the torus.
+///
+/// Sites on a jittered grid, [`PATCH_FRACTION`] of the sample side apart
+/// (each row of cells shifted by a random phase),
+/// cut the map into irregular cells (each texel belongs to the nearest of
+/// the sites of its own and the eight surrounding grid cells, distances
+/// wrapping around). Cells are filled one at a time, in raster order from a
+/// random start cell — so the last, most constrained cells close up at a
+/// random place, not on the map's wrap edges — each with a coherent copy of
+/// the sample. The source texel put at the site is drawn at random among
+/// the candidates whose coherent extension matches the already filled texels
+/// within `band` of the cell (summed squared feature difference) within 10 %
+/// of the best match. Candidates that would merely continue a neighbouring
+/// cell (offset within an eighth of the sample of that cell's) are left out
+/// when any other remains, or the map would grow into a plain tiling.
+fn initial_patches(sample: &Sample, w: usize, h: usize, band: usize, seed: u64) -> Vec<u32> {
+    let (sw, sh, n) = (sample.w, sample.h, sample.n);
+    let p = (sw.min(sh) as f64 * PATCH_FRACTION).max(1.0);
+    let cx = ((w as f64 / p).round() as usize).max(1);
+    let cy = ((h as f64 / p).round() as usize).max(1);
+    let (fx, fy) = (w as f64 / cx as f64, h as f64 / cy as f64);
+    // a random phase per row of cells in x and one in y, so that the cell
+    // boundaries (which gather near the grid lines) fall anywhere, not on
+    // the map's wrap edges
+    let phase_y = unit(hash3(seed, 0, 8)) * fy;
+    let phase_x: Vec<f64> = (0..cy).map(|j| unit(hash3(seed, j as u64, 9)) * fx).collect();
+    let sites: Vec<(i64, i64)> = (0..cx * cy)
+        .map(|c| {
+            let (i, j) = (c % cx, c / cx);
+            let px = ((i as f64 + unit(hash3(seed, c as u64, 1))) * fx + phase_x[j]) as usize % w;
+            let py = ((j as f64 + unit(hash3(seed, c as u64, 2))) * fy + phase_y) as usize % h;
+            (px as i64, py as i64)
+        })
+        .collect();
+    let torus = |d: i64, n: usize| {
+        let n = n as i64;
+        let d = d.rem_euclid(n);
+        if d > n / 2 { d - n } else { d }
+    };
+    // the cell of every texel
+    let mut owner = vec![0u32; w * h];
+    owner.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let j0 = ((y as f64 + 0.5 - phase_y).rem_euclid(h as f64) / fy) as i64;
+        for (x, dst) in row.iter_mut().enumerate() {
+            let mut best = (i64::MAX, 0usize);
+            for dj in -1..=1 {
+                let j = (j0 + dj).rem_euclid(cy as i64) as usize;
+                let i0 = ((x as f64 + 0.5 - phase_x[j]).rem_euclid(w as f64) / fx) as i64;
+                for di in -1..=1 {
+                    let c = j * cx + (i0 + di).rem_euclid(cx as i64) as usize;
+                    let (px, py) = sites[c];
+                    let (dx, dy) = (torus(x as i64 - px, w), torus(y as i64 - py, h));
+                    if dx * dx + dy * dy < best.0 {
+                        best = (dx * dx + dy * dy, c);
+                    }
+                }
+            }
+            *dst = best.1 as u32;
+        }
+    });
+    // texels bucketed by cell
+    let mut start = vec![0usize; cx * cy + 1];
+    for &o in &owner {
+        start[o as usize + 1] += 1;
+    }
+    for c in 0..cx * cy {
+        start[c + 1] += start[c];
+    }
+    let mut fill = start.clone();
+    let mut members = vec![0u32; w * h];
+    for (t, &o) in owner.iter().enumerate() {
+        members[fill[o as usize]] = t as u32;
+        fill[o as usize] += 1;
+    }
+    let candidates: Vec<usize> = if n <= MAX_INIT_CANDIDATES {
+        (0..n).collect()
+    } else {
+        (0..MAX_INIT_CANDIDATES).map(|j| (hash3(seed, j as u64, 4) % n as u64) as usize).collect()
+    };
+    let mut cur = vec![0u32; w * h];
+    let mut done = vec![false; cx * cy];
+    let mut filled: Vec<usize> = Vec::new();
+    let mut overlap: Vec<(i64, i64, usize)> = Vec::new();
+    // each filled cell's offset (source − site, in the sample) and the
+    // neighbouring filled cells of the cell being filled
+    let mut offsets = vec![(0i64, 0i64); cx * cy];
+    let mut near: Vec<usize> = Vec::new();
+    let (rx, ry) = ((sw / 8).max(1) as i64, (sh / 8).max(1) as i64);
+    let b = band as i64;
+    let (i0, j0) = ((hash3(seed, 5, 5) % cx as u64) as usize, (hash3(seed, 6, 6) % cy as u64) as usize);
+    for jj in 0..cy {
+        for ii in 0..cx {
+            let c = ((j0 + jj) % cy) * cx + (i0 + ii) % cx;
+            let (px, py) = sites[c];
+            let cell = &members[start[c]..start[c + 1]];
+            // already filled texels near the cell, as offsets from its site
+            filled.clear();
+            for &t in cell {
+                let (x, y) = ((t as usize % w) as i64, (t as usize / w) as i64);
+                for oy in -b..=b {
+                    for ox in -b..=b {
+                        let q = (y + oy).rem_euclid(h as i64) as usize * w + (x + ox).rem_euclid(w as i64) as usize;
+                        if done[owner[q] as usize] {
+                            filled.push(q);
+                        }
+                    }
+                }
+            }
+            filled.sort_unstable();
+            filled.dedup();
+            overlap.clear();
+            near.clear();
+            for &q in &filled {
+                if !near.contains(&(owner[q] as usize)) {
+                    near.push(owner[q] as usize);
+                }
+                let (qx, qy) = ((q % w) as i64, (q / w) as i64);
+                overlap.push((torus(qx - px, w), torus(qy - py, h), cur[q] as usize));
+            }
+            // a candidate continuing a neighbour coherently (same offset, give
+            // or take an eighth of the sample) would just extend the tiling
+            let offset_of = |src: usize| {
+                (((src % sw) as i64 - px).rem_euclid(sw as i64), ((src / sw) as i64 - py).rem_euclid(sh as i64))
+            };
+            let fresh = |src: usize| {
+                let (ox, oy) = offset_of(src);
+                near.iter().all(|&m| {
+                    let (mx, my) = offsets[m];
+                    torus(ox - mx, sw).abs() >= rx || torus(oy - my, sh).abs() >= ry
+                })
+            };
+            let any_fresh = candidates.iter().any(|&src| fresh(src));
+            // the overlap as sample offsets in 0..side (no division in the loop below)
+            let shifted: Vec<(usize, usize, &[f32])> = overlap
+                .iter()
+                .map(|&(dx, dy, q)| {
+                    (dx.rem_euclid(sw as i64) as usize, dy.rem_euclid(sh as i64) as usize, sample.feat(q))
+                })
+                .collect();
+            let costs: Vec<f32> = candidates
+                .par_iter()
+                .with_min_len(32)
+                .map(|&src| {
+                    if any_fresh && !fresh(src) {
+                        return f32::INFINITY;
+                    }
+                    let (sx, sy) = (src % sw, src / sw);
+                    let mut sum = 0.0;
+                    for &(dx, dy, target) in &shifted {
+                        let (x, y) = (sx + dx, sy + dy);
+                        let x = if x >= sw { x - sw } else { x };
+                        let y = if y >= sh { y - sh } else { y };
+                        sum += sqdist(sample.feat(y * sw + x), target);
+                    }
+                    sum
+                })
+                .collect();
+            let best = costs.iter().copied().fold(f32::INFINITY, f32::min);
+            let limit = best * 1.1 + 1e-12;
+            let eligible = costs.iter().filter(|&&v| v <= limit).count().max(1);
+            let mut pick = (hash3(seed, c as u64, 7) % eligible as u64) as usize;
+            let mut src = candidates.first().copied().unwrap_or(0);
+            for (&cand, &v) in candidates.iter().zip(&costs) {
+                if v <= limit {
+                    if pick == 0 {
+                        src = cand;
+                        break;
+                    }
+                    pick -= 1;
+                }
+            }
+            for &t in cell {
+                let (x, y) = ((t as usize % w) as i64, (t as usize / w) as i64);
+                cur[t as usize] = sample.wrap(src, torus(x - px, w), torus(y - py, h)) as u32;
+            }
+            offsets[c] = offset_of(src);
+            done[c] = true;
+        }
+    }
+    cur
+}
+
+/// Scratch of one correction worker.
+struct Scratch {
+    target: Vec<f32>,
+    srcs: Vec<usize>,
+    cand: Vec<f32>,
+    stamp: Vec<u32>,
+    generation: u32,
+}
+
+/// The best sample texel for output texel (x, y) given the current map `prev`.
+fn correct(
+    s: &Sample,
+    ks: (usize, &[u32]),
+    prev: &[u32],
+    (w, h): (usize, usize),
+    (x, y): (usize, usize),
+    scr: &mut Scratch,
+) -> u32 {
+    let Scratch { target, srcs, cand, stamp, generation } = scr;
+    for (bi, &(dx, dy)) in s.offsets.iter().enumerate() {
+        let ox = (x as i64 + dx).rem_euclid(w as i64) as usize;
+        let oy = (y as i64 + dy).rem_euclid(h as i64) as usize;
+        let src = prev[oy * w + ox] as usize;
+        srcs[bi] = src;
+        target[bi * s.d..(bi + 1) * s.d].copy_from_slice(s.feat(src));
+    }
+    if *generation == u32::MAX {
+        stamp.fill(0);
+        *generation = 0;
+    }
+    *generation += 1;
+    let gen_now = *generation;
+    let (k, sets) = ks;
+    let mut best = (srcs[s.centre], f32::INFINITY);
+    let mut eval = |c: usize, best: &mut (usize, f32)| {
+        if stamp[c] == gen_now {
+            return;
+        }
+        stamp[c] = gen_now;
+        let d = s.dist_around(target, s.nbhd(c, cand), best.1);
+        if d < best.1 {
+            *best = (c, d);
+        }
+    };
+    // the current value first, so that ties keep it
+    let order = std::iter::once(s.centre).chain((0..s.offsets.len()).filter(|&b| b != s.centre));
+    for bi in order {
+        let (dx, dy) = s.offsets[bi];
+        let c0 = s.wrap(srcs[bi], -dx, -dy);
+        eval(c0, &mut best);
+        for &c in &sets[c0 * k..(c0 + 1) * k] {
+            eval(c as usize, &mut best);
+        }
+    }
+    best.0 as u32
+}
+
+/// Grows a seamless, tileable index map of `opts.width`×`opts.height` from
+/// the BTF's sample (see [`synthesize_from_features`]), on the first
+/// `opts.dims` principal components of [`features`]. `progress(pass, passes)`
+/// is called after each correction pass.
+pub fn synthesize_index(
+    btf: &Btf,
+    opts: &SynthesisOptions,
+    progress: &(dyn Fn(u32, u32) + Sync),
+) -> Result<IndexMap, CoreError> {
+    validate(opts)?;
+    let feats = features(btf, opts.dims);
+    synthesize_from_features(btf.width(), btf.height(), &feats, opts, progress)
+}
+
+/// Grows an index map from per-texel features of a `sample_w`×`sample_h`
+/// sample (`opts.dims` is not used: all of `feats`' dimensions are compared).
+///
+/// k-coherence synthesis with every neighbourhood toroidal, in the sample
+/// (whose tiles are seamless) and in the output (so the map tiles):
+///
+/// 1. for every sample texel, its k-coherence set: the `k` other sample
+///    texels whose neighbourhoods are closest in summed squared feature
+///    distance;
+/// 2. the map starts as irregular patches about 3/4 of the sample across,
+///    each a coherent copy of the sample, quilted on the torus: each patch's
+///    source is drawn (seeded) among those that best continue the patches
+///    already placed around it, excluding the plain continuation of a
+///    neighbour (which would regrow the tiling);
+/// 3. each correction pass visits the map in about (r + 1)² interleaved
+///    classes of texels at least r + 1 apart, wrap-around included (r the
+///    neighbourhood radius), so that no texel of a class sees another one of
+///    it; a class is corrected in parallel (deterministic). A texel p's candidates are, for each neighbour at
+///    offset o (centre included), the coherent source s(p + o) − o and its
+///    k-coherence set; it takes the candidate whose sample neighbourhood best
+///    matches the features of p's current neighbours (centre excluded),
+///    keeping its current source on ties.
+///
+/// Sample neighbourhoods are precomputed when they fit 16 Mi floats, and
+/// the k-coherence search is exhaustive when texels² × neighbourhood floats
+/// stay under 2³² (e.g. any sample up to 64×64 with 5×5 neighbourhoods of 8
+/// dimensions); above that it is approximate (random probes and coherent
+/// propagation, as PatchMatch).
+pub fn synthesize_from_features(
+    sample_w: u32,
+    sample_h: u32,
+    feats: &Features,
+    opts: &SynthesisOptions,
+    progress: &(dyn Fn(u32, u32) + Sync),
+) -> Result<IndexMap, CoreError> {
+    validate(opts)?;
+    if !(1..=MAX_BTF_SIDE).contains(&sample_w) || !(1..=MAX_BTF_SIDE).contains(&sample_h) {
+        return Err(out_of_range(
+            "sample",
+            format!("{sample_w}x{sample_h} texels; each side must be in 1..={MAX_BTF_SIDE}"),
+        ));
+    }
+    let (sw, sh) = (sample_w as usize, sample_h as usize);
+    if !(1..=MAX_FEATURE_DIMS).contains(&feats.dims) || feats.values.len() != sw * sh * feats.dims {
+        return Err(out_of_range(
+            "features",
+            format!(
+                "{} values of {} dimensions; a {sample_w}x{sample_h} sample needs {} texels × 1..={MAX_FEATURE_DIMS} dimensions",
+                feats.values.len(),
+                feats.dims,
+                sw * sh
+            ),
+        ));
+    }
+    let (w, h) = (opts.width as usize, opts.height as usize);
+    let sample = Sample::new(sw, sh, feats, opts.neighbourhood as usize, NBHD_BUDGET);
+    let (k, sets) = ksets(&sample, opts.k, EXACT_KSET_BUDGET);
+    let mut cur = initial_patches(&sample, w, h, (opts.neighbourhood as usize / 2).max(1), opts.seed);
+    let len = sample.len();
+    let blocks = sample.offsets.len();
+    let n = sample.n;
+    let init = || Scratch {
+        target: vec![0.0; len],
+        srcs: vec![0; blocks],
+        cand: vec![0.0; len],
+        stamp: vec![0; n],
+        generation: 0,
+    };
+    // texels of one class are at least r + 1 apart, across the wrap too: none
+    // reads another's value while it is being replaced (Gauss–Seidel without
+    // an order). Per axis: the residues mod r + 1 of the first multiple of
+    // r + 1 texels, then each remaining texel line alone.
+    let q = opts.neighbourhood as usize / 2 + 1;
+    let groups = |n: usize| -> Vec<Vec<usize>> {
+        let whole = n - n % q;
+        let mut g: Vec<Vec<usize>> = (0..q).map(|c| (c..whole).step_by(q).collect()).collect();
+        g.extend((whole..n).map(|x| vec![x]));
+        g.retain(|v| !v.is_empty());
+        g
+    };
+    let (gx, gy) = (groups(w), groups(h));
+    for pass in 0..opts.passes {
+        for ys in &gy {
+            for xs in &gx {
+                let rows: Vec<Vec<u32>> = ys
+                    .par_iter()
+                    .map_init(init, |scr, &y| {
+                        xs.iter().map(|&x| correct(&sample, (k, &sets), &cur, (w, h), (x, y), scr)).collect()
+                    })
+                    .collect();
+                for (&y, vals) in ys.iter().zip(rows) {
+                    for (&x, v) in xs.iter().zip(vals) {
+                        cur[y * w + x] = v;
+                    }
+                }
+            }
+        }
+        progress(pass + 1, opts.passes);
+    }
+    let entries = cur.iter().map(|&t| [(t as usize % sw) as u16, (t as usize / sw) as u16]).collect();
+    Ok(IndexMap { width: opts.width, height: opts.height, entries })
+}
+
+// ---------------------------------------------------------------------------
+// seam quality
+
+/// Coherence of an index map at its wrap-around edges versus its interior
+/// (see [`seam_quality`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SeamReport {
+    /// Mean neighbour error over the pairs that straddle the map's wrap
+    /// edges (x = width−1 → 0 and y = height−1 → 0).
+    pub seam_error: f32,
+    /// Mean neighbour error over all other adjacent pairs (0 when there are none).
+    pub interior_error: f32,
+    /// `seam_error / interior_error`: about 1 when the wrap edges are no
+    /// worse than the interior (the map tiles seamlessly); 1 when both are
+    /// 0, infinite when only the interior is 0.
+    pub ratio: f32,
+}
+
+/// Neighbour errors of `map` over the BTF's sample with features `feats`.
+///
+/// For each pair of horizontally (vertically) adjacent output texels, with
+/// the map wrapping around, the *neighbour error* is the Euclidean feature
+/// distance between the sample texel that would continue the first texel's
+/// source coherently — s(left) + (1, 0), resp. s(top) + (0, 1), wrapped in
+/// the sample — and the source actually chosen for the second texel; it is
+/// 0 wherever the two are coherent (or merely look the same). Entries
+/// outside the sample wrap into it; texels missing from `feats` count as
+/// zero distance.
+pub fn seam_quality(btf: &Btf, map: &IndexMap, feats: &Features) -> SeamReport {
+    let (sw, sh) = (btf.width().max(1), btf.height().max(1));
+    let (w, h) = (map.width, map.height);
+    let feat =
+        |[u, v]: [u16; 2]| feats.texel((u32::from(v) % sh) as usize * sw as usize + (u32::from(u) % sw) as usize);
+    let dist = |a: &[f32], b: &[f32]| sqdist(a, b).sqrt();
+    // per row: (seam sum, seam count, interior sum, interior count), summed in order
+    let rows: Vec<[f64; 4]> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let mut acc = [0f64; 4];
+            for x in 0..w {
+                let [u, v] = map.get(x, y);
+                let (u, v) = (u32::from(u) % sw, u32::from(v) % sh);
+                let right = dist(feat([((u + 1) % sw) as u16, v as u16]), feat(map.get(x + 1, y)));
+                let down = dist(feat([u as u16, ((v + 1) % sh) as u16]), feat(map.get(x, y + 1)));
+                for (e, seam) in [(right, x + 1 == w), (down, y + 1 == h)] {
+                    let i = if seam { 0 } else { 2 };
+                    acc[i] += f64::from(e);
+                    acc[i + 1] += 1.0;
+                }
+            }
+            acc
+        })
+        .collect();
+    let mut t = [0f64; 4];
+    for r in &rows {
+        for (a, b) in t.iter_mut().zip(r) {
+            *a += b;
+        }
+    }
+    let seam = if t[1] > 0.0 { (t[0] / t[1]) as f32 } else { 0.0 };
+    let interior = if t[3] > 0.0 { (t[2] / t[3]) as f32 } else { 0.0 };
+    let ratio = if interior > 0.0 {
+        seam / interior
+    } else if seam == 0.0 {
+        1.0
+    } else {
+        f32::INFINITY
+    };
+    SeamReport { seam_error: seam, interior_error: interior, ratio }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::btf::AngularGrid;
+    use crate::btf::synth::{Material, SynthOptions, synthesize};
+
+    fn corduroy() -> Btf {
+        let grid = AngularGrid::new(vec![0.0, 40.0], 4).unwrap();
+        synthesize(Material::Corduroy, &SynthOptions { grid, size: 8, supersample: 1, exposure: 0.85 }, &|_| {})
+            .unwrap()
+    }
+
+    fn opts(width: u32, height: u32, seed: u64) -> SynthesisOptions {
+        SynthesisOptions { width, height, seed, ..SynthesisOptions::default() }
+    }
+
+    fn random_map(sw: u32, sh: u32, width: u32, height: u32, seed: u64) -> IndexMap {
+        let entries = (0..width as u64 * height as u64)
+            .map(|i| {
+                let r = hash3(seed, i, 0);
+                [(r % sw as u64) as u16, ((r >> 32) % sh as u64) as u16]
+            })
+            .collect();
+        IndexMap { width, height, entries }
+    }
+
+    #[test]
+    fn entries_stay_inside_the_sample() {
+        let btf = corduroy();
+        let calls = std::sync::atomic::AtomicU32::new(0);
+        let map = synthesize_index(&btf, &opts(37, 22, 7), &|pass, passes| {
+            assert_eq!(passes, 3);
+            assert!(pass >= 1 && pass <= passes);
+            calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        })
+        .unwrap();
+        assert_eq!(calls.into_inner(), 3);
+        assert_eq!((map.width, map.height, map.entries.len()), (37, 22, 37 * 22));
+        assert!(map.entries.iter().all(|&[u, v]| u < 8 && v < 8), "{:?}", map.entries);
+        // every pass count and neighbourhood works, including the degenerate ones
+        for (nb, passes) in [(1, 2), (3, 0), (15, 1)] {
+            let o = SynthesisOptions { neighbourhood: nb, passes, ..opts(9, 5, 3) };
+            let m = synthesize_index(&btf, &o, &|_, _| {}).unwrap();
+            assert!(m.entries.len() == 45 && m.entries.iter().all(|&[u, v]| u < 8 && v < 8));
+        }
+    }
+
+    #[test]
+    fn synthesis_is_deterministic_per_seed() {
+        let btf = corduroy();
+        let a = synthesize_index(&btf, &opts(24, 24, 11), &|_, _| {}).unwrap();
+        let b = synthesize_index(&btf, &opts(24, 24, 11), &|_, _| {}).unwrap();
+        let c = synthesize_index(&btf, &opts(24, 24, 12), &|_, _| {}).unwrap();
+        assert_eq!(a, b);
+        assert_ne!(a, c);
+    }
+
+    #[test]
+    fn synthesized_maps_are_coherent_and_tile() {
+        let btf = corduroy();
+        let f = features(&btf, 8);
+        // pooled over seeds: one defect line next to the wrap edge swings a single map's ratio
+        let (mut seam, mut interior) = (0.0, 0.0);
+        for seed in 0..6 {
+            let map = synthesize_index(&btf, &opts(48, 40, seed), &|_, _| {}).unwrap();
+            let rnd = random_map(8, 8, 48, 40, seed);
+            let q = seam_quality(&btf, &map, &f);
+            let r = seam_quality(&btf, &rnd, &f);
+            assert!(q.interior_error < 0.2 * r.interior_error, "seed {seed}: {q:?} vs random {r:?}");
+            assert!(q.seam_error < 0.2 * r.seam_error, "seed {seed}: {q:?} vs random {r:?}");
+            assert!(q.ratio < 4.0, "seed {seed}: {q:?}");
+            // a random map has no preferred edge
+            assert!((0.7..1.4).contains(&r.ratio), "random {r:?}");
+            seam += q.seam_error;
+            interior += q.interior_error;
+        }
+        assert!(seam < 1.5 * interior, "pooled seam error {seam} vs interior {interior}");
+    }
+
+    #[test]
+    fn identity_of_a_tileable_sample_is_coherent() {
+        let btf = corduroy();
+        let f = features(&btf, 4);
+        let q = seam_quality(&btf, &IndexMap::identity(8, 8, 16, 24), &f);
+        assert_eq!((q.seam_error, q.interior_error, q.ratio), (0.0, 0.0, 1.0));
+        // cut off mid-sample, the plain tiling no longer wraps seamlessly
+        let q = seam_quality(&btf, &IndexMap::identity(8, 8, 12, 16), &f);
+        assert_eq!(q.interior_error, 0.0);
+        assert!(q.seam_error > 0.0 && q.ratio == f32::INFINITY, "{q:?}");
+        // a map whose texels do not continue each other is not coherent
+        let q = seam_quality(&btf, &random_map(8, 8, 16, 16, 5), &f);
+        assert!(q.interior_error > 0.0 && q.seam_error > 0.0, "{q:?}");
+    }
+
+    #[test]
+    fn bad_options_are_refused() {
+        let btf = corduroy();
+        let base = opts(16, 16, 1);
+        let cases = [
+            ("width", SynthesisOptions { width: 0, ..base.clone() }),
+            ("width", SynthesisOptions { width: 8193, ..base.clone() }),
+            ("height", SynthesisOptions { height: 0, ..base.clone() }),
+            ("height", SynthesisOptions { height: 9000, ..base.clone() }),
+            ("neighbourhood", SynthesisOptions { neighbourhood: 4, ..base.clone() }),
+            ("neighbourhood", SynthesisOptions { neighbourhood: 0, ..base.clone() }),
+            ("neighbourhood", SynthesisOptions { neighbourhood: 17, ..base.clone() }),
+            ("dims", SynthesisOptions { dims: 0, ..base.clone() }),
+            ("dims", SynthesisOptions { dims: 17, ..base.clone() }),
+            ("k", SynthesisOptions { k: 0, ..base.clone() }),
+            ("k", SynthesisOptions { k: 17, ..base.clone() }),
+            ("passes", SynthesisOptions { passes: 65, ..base.clone() }),
+        ];
+        for (key, o) in cases {
+            match synthesize_index(&btf, &o, &|_, _| {}) {
+                Err(CoreError::OutOfRange { key: k, .. }) => assert_eq!(k, key, "{o:?}"),
+                other => panic!("{o:?} gave {other:?}"),
+            }
+        }
+        assert!(synthesize_index(&btf, &base, &|_, _| {}).is_ok());
+        // features that do not match the sample
+        let f = Features { dims: 2, values: vec![0.0; 10] };
+        assert!(synthesize_from_features(8, 8, &f, &base, &|_, _| {}).is_err());
+        assert!(synthesize_from_features(0, 8, &f, &base, &|_, _| {}).is_err());
+    }
+
+    #[test]
+    fn pca_variances_decrease() {
+        let btf = corduroy();
+        let f = features(&btf, 8);
+        assert_eq!((f.dims, f.texels()), (8, 64));
+        let var = f.variances();
+        assert!(var[0] > 1e-4, "{var:?}");
+        for i in 1..var.len() {
+            assert!(var[i] <= var[i - 1] * (1.0 + 1e-4) + 1e-9, "{var:?}");
+        }
+        // the components are centred and uncorrelated
+        for i in 0..8 {
+            let mean = f.values.chunks_exact(8).map(|v| v[i] as f64).sum::<f64>() / 64.0;
+            assert!(mean.abs() < 1e-4, "mean {i} = {mean}");
+            for j in 0..i {
+                let cov = f.values.chunks_exact(8).map(|v| v[i] as f64 * v[j] as f64).sum::<f64>() / 64.0;
+                assert!(cov.abs() < 1e-3 * (var[0] as f64), "cov {i},{j} = {cov}");
+            }
+        }
+        // the first component carries more than an equal share of the variance
+        let total: f32 = var.iter().sum();
+        assert!(var[0] > total / 8.0 * 1.5, "{var:?}");
+        assert_eq!(f, features(&btf, 8), "deterministic");
+    }
+
+    #[test]
+    fn pca_matches_both_paths_and_a_known_spectrum() {
+        // Jacobi recovers a known diagonal-in-disguise matrix
+        let (ev, _) = jacobi(vec![2.0, 1.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, 5.0], 3);
+        let mut ev = ev;
+        ev.sort_by(f64::total_cmp);
+        for (a, b) in ev.iter().zip([1.0, 3.0, 5.0]) {
+            assert!((a - b).abs() < 1e-12, "{ev:?}");
+        }
+        let (lam, vecs) = top_eigen(&[2.0, 1.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, 5.0], 3, 2);
+        assert!((lam[0] - 5.0).abs() < 1e-9 && (lam[1] - 3.0).abs() < 1e-9, "{lam:?}");
+        assert!((vecs[0][2].abs() - 1.0).abs() < 1e-6, "{vecs:?}");
+    }
+
+    #[test]
+    fn index_map_encodings() {
+        let m = IndexMap::identity(8, 4, 10, 6);
+        assert_eq!(m.get(9, 5), [1, 1]);
+        assert_eq!(m.get(10, 6), m.get(0, 0), "get wraps");
+        let rgba = m.to_rgba(8, 4);
+        assert_eq!(rgba.len(), 240);
+        assert_eq!(&rgba[7 * 4..8 * 4], &[255, 0, 0, 255]);
+        assert_eq!(&rgba[(3 * 10 + 1) * 4..(3 * 10 + 2) * 4], &[36, 255, 0, 255]);
+        let back = IndexMap::from_rgba16(10, 6, &m.to_rgba16(), 8, 4).unwrap();
+        assert_eq!(back, m);
+        assert!(IndexMap::from_rgba16(10, 6, &m.to_rgba16(), 8, 3).is_err());
+        assert!(IndexMap::from_rgba16(10, 5, &m.to_rgba16(), 8, 4).is_err());
+        let empty = IndexMap { width: 0, height: 0, entries: Vec::new() };
+        assert_eq!(empty.get(3, 3), [0, 0]);
+    }
+
+    /// Timing on the paper's 32×32 sample and 8×16 grid: run with
+    /// `cargo test --release -p hitex-core --lib btf::index -- --ignored --nocapture`.
+    #[test]
+    #[ignore]
+    fn timing_512() {
+        for mat in [Material::Corduroy, Material::Knit, Material::Leather] {
+            let t = std::time::Instant::now();
+            let o = SynthOptions { grid: AngularGrid::paper(), size: 32, supersample: 1, exposure: 0.85 };
+            let btf = synthesize(mat, &o, &|_| {}).unwrap();
+            println!("{}: BTF {} images of 32x32 rendered in {:.2?}", mat.name(), btf.images(), t.elapsed());
+            let t = std::time::Instant::now();
+            let f = features(&btf, 8);
+            println!("  features: {:.2?}, variances {:.4?}", t.elapsed(), f.variances());
+            let (mut seam, mut interior) = (0.0, 0.0);
+            for seed in 0..3 {
+                let t = std::time::Instant::now();
+                let map = synthesize_index(&btf, &opts(512, 512, seed), &|_, _| {}).unwrap();
+                let dt = t.elapsed();
+                let q = seam_quality(&btf, &map, &f);
+                let r = seam_quality(&btf, &random_map(32, 32, 512, 512, seed), &f);
+                println!("  seed {seed}: synthesize_index 512x512 in {dt:.2?}: {q:?}; random map {r:?}");
+                seam += q.seam_error;
+                interior += q.interior_error;
+            }
+            println!("  pooled seam/interior ratio {:.3}", seam / interior);
+        }
+    }
+
+    #[test]
+    fn sample_paths_agree() {
+        let btf = corduroy();
+        let f = features(&btf, 6);
+        let pre = Sample::new(8, 8, &f, 5, NBHD_BUDGET);
+        let gathered = Sample::new(8, 8, &f, 5, 0);
+        assert!(pre.nbhd.is_some() && gathered.nbhd.is_none());
+        let (k, exact) = ksets(&pre, 4, EXACT_KSET_BUDGET);
+        assert_eq!(k, 4);
+        assert_eq!(ksets(&gathered, 4, EXACT_KSET_BUDGET), (k, exact.clone()));
+        // the approximate search returns k distinct other texels, nearly as close
+        let (ka, approx) = ksets(&gathered, 4, 0);
+        assert_eq!(ka, 4);
+        let (mut a, mut b) = (vec![0.0; pre.len()], vec![0.0; pre.len()]);
+        let mut total = [0f64; 2];
+        for t in 0..64 {
+            for (which, sets) in [&exact, &approx].into_iter().enumerate() {
+                let set = &sets[t * 4..t * 4 + 4];
+                for (i, &c) in set.iter().enumerate() {
+                    assert!(c as usize != t && !set[..i].contains(&c), "texel {t}: {set:?}");
+                    let an = pre.nbhd(t, &mut a).to_vec();
+                    total[which] += sqdist(&an, pre.nbhd(c as usize, &mut b)) as f64;
+                }
+            }
+        }
+        assert!(total[1] <= total[0] * 1.25 + 1e-9, "exact {} approximate {}", total[0], total[1]);
+        // a one-texel sample has no k-coherence set and still synthesizes
+        let one = Features { dims: 1, values: vec![0.5] };
+        let m = synthesize_from_features(1, 1, &one, &opts(5, 3, 1), &|_, _| {}).unwrap();
+        assert!(m.entries.iter().all(|&e| e == [0, 0]));
+    }
+
+    #[test]
+    fn seam_quality_tolerates_foreign_input() {
+        let btf = corduroy();
+        let short = Features { dims: 3, values: vec![1.0; 10] };
+        let map = IndexMap { width: 3, height: 2, entries: vec![[40, 9]; 6] };
+        let q = seam_quality(&btf, &map, &short);
+        assert!(q.seam_error.is_finite() && q.interior_error.is_finite());
+        let empty = IndexMap { width: 0, height: 0, entries: Vec::new() };
+        assert_eq!(seam_quality(&btf, &empty, &short).ratio, 1.0);
+    }
+}
