@@ -6,6 +6,8 @@
 //!
 //! Every error names the file, and the record or key where known.
 
+pub mod btf_file;
+pub mod btf_images;
 pub mod dem;
 pub mod geotiff;
 pub mod iges;

@@ -1,0 +1,600 @@
+//! The native BTF file, `.hbtf`: a versioned little-endian binary with a
+//! checked header and a CRC-32 over the texels.
+//!
+//! | offset      | size      | field                                             |
+//! |-------------|-----------|---------------------------------------------------|
+//! | 0           | 4         | magic `b"HBTF"`                                   |
+//! | 4           | 4         | `u32` version, 1                                  |
+//! | 8           | 4         | `u32` header bytes = 44 + 4·θ count (payload offset) |
+//! | 12          | 4         | `u32` sample width in texels                      |
+//! | 16          | 4         | `u32` sample height in texels                     |
+//! | 20          | 4         | `u32` θ count                                     |
+//! | 24          | 4         | `u32` φ count                                     |
+//! | 28          | 4         | `u32` flags, 0                                    |
+//! | 32          | 4·θ count | `f32` polar angles in degrees                     |
+//! | 32 + 4·θ    | 8         | `u64` payload length in bytes                     |
+//! | 40 + 4·θ    | 4         | `u32` CRC-32 (IEEE, as zip and PNG) of the payload |
+//! | 44 + 4·θ    | payload   | RGB8 texels exactly as [`Btf::texels`]            |
+//!
+//! Every declared size is checked against the shape limits of
+//! [`checked_size`] and against the bytes actually present before anything
+//! is allocated, so a header claiming gigabytes in a small file is refused at
+//! once. Nothing may follow the payload.
+
+use crate::IoError;
+use hitex_core::btf::dataset::checked_size;
+use hitex_core::btf::grid::MAX_ANGLES;
+use hitex_core::btf::{AngularGrid, Btf};
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+
+/// The file signature.
+pub const HBTF_MAGIC: [u8; 4] = *b"HBTF";
+
+/// The version this module writes and reads.
+pub const HBTF_VERSION: u32 = 1;
+
+/// Bytes of the fixed part of the header (magic to flags).
+const FIXED_HEADER: usize = 32;
+
+/// Bytes after the θ list: payload length and CRC.
+const HEADER_TAIL: usize = 12;
+
+/// Chunk in which the payload is written, read and checksummed.
+const CHUNK: usize = 1 << 20;
+
+/// The header of an `.hbtf` file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HbtfHeader {
+    /// Format version (1).
+    pub version: u32,
+    /// Header length in bytes, the offset of the payload.
+    pub header_bytes: u32,
+    /// Sample width in texels.
+    pub width: u32,
+    /// Sample height in texels.
+    pub height: u32,
+    /// The angular grid.
+    pub grid: AngularGrid,
+    /// Flags (0 in version 1).
+    pub flags: u32,
+    /// Payload length in bytes (RGB8 texels).
+    pub payload_bytes: u64,
+    /// CRC-32 of the payload as recorded in the header.
+    pub crc32: u32,
+}
+
+impl HbtfHeader {
+    /// Number of images (directions²).
+    pub fn images(&self) -> usize {
+        self.grid.directions() * self.grid.directions()
+    }
+}
+
+/// Header bytes for `theta_count` polar angles.
+fn header_len(theta_count: usize) -> usize {
+    FIXED_HEADER + 4 * theta_count + HEADER_TAIL
+}
+
+/// The serialised header of `btf` with the payload's CRC.
+fn encode_header(btf: &Btf, crc: u32) -> Vec<u8> {
+    let grid = btf.grid();
+    let n = grid.theta_count();
+    let mut h = Vec::with_capacity(header_len(n));
+    h.extend_from_slice(&HBTF_MAGIC);
+    for v in [HBTF_VERSION, header_len(n) as u32, btf.width(), btf.height(), n as u32, grid.phi_count() as u32, 0] {
+        h.extend_from_slice(&v.to_le_bytes());
+    }
+    for &t in grid.theta_deg() {
+        h.extend_from_slice(&t.to_le_bytes());
+    }
+    h.extend_from_slice(&(btf.texels().len() as u64).to_le_bytes());
+    h.extend_from_slice(&crc.to_le_bytes());
+    h
+}
+
+/// Writes `btf` as an `.hbtf` file, atomically: the data goes to a temporary
+/// file in the same folder, is synced, and is renamed over `path`; on any
+/// failure the temporary file is removed and `path` is untouched. The payload
+/// is written in 1 MiB chunks straight from the BTF (no second copy).
+pub fn write_hbtf(path: &Path, btf: &Btf) -> Result<(), IoError> {
+    let crc = crc32(btf.texels());
+    let header = encode_header(btf, crc);
+    write_atomic_with(path, |w| {
+        w.write_all(&header)?;
+        for chunk in btf.texels().chunks(CHUNK) {
+            w.write_all(chunk)?;
+        }
+        Ok(())
+    })
+}
+
+/// Streams `write` into a temporary file next to `path` and renames it over
+/// `path`; the temporary file never outlives a failure.
+pub(crate) fn write_atomic_with(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<&std::fs::File>) -> std::io::Result<()>,
+) -> Result<(), IoError> {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let werr = |m: String| IoError::Write { path: path.to_path_buf(), message: m };
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = path.file_name().ok_or_else(|| werr("not a file path".into()))?;
+    let tmp = dir.join(format!(
+        ".{}.{}-{}.tmp",
+        name.to_string_lossy(),
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    let file = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp).map_err(|e| werr(e.to_string()))?;
+    let result = (|| -> std::io::Result<()> {
+        let mut w = std::io::BufWriter::with_capacity(CHUNK, &file);
+        write(&mut w)?;
+        w.flush()?;
+        drop(w);
+        file.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    drop(file);
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(werr(e.to_string()));
+    }
+    Ok(())
+}
+
+/// Reads an `.hbtf` file, checking its header, sizes and CRC.
+pub fn read_hbtf(path: &Path) -> Result<Btf, IoError> {
+    let rerr = |source: std::io::Error| IoError::Read { path: path.to_path_buf(), source };
+    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+    let file = std::fs::File::open(path).map_err(rerr)?;
+    let len = file.metadata().map_err(rerr)?.len();
+    let mut r = std::io::BufReader::new(file);
+    let header = read_header(&mut r, len, path)?;
+    // the header checks bound the payload by both the shape limit and the file length
+    let mut texels = vec![0u8; header.payload_bytes as usize];
+    let mut done = 0usize;
+    let mut crc = Crc32::new();
+    while done < texels.len() {
+        let end = (done + CHUNK).min(texels.len());
+        r.read_exact(&mut texels[done..end]).map_err(|e| {
+            if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                fmt(format!("the file ends inside the payload (byte {} of {})", done, texels.len()))
+            } else {
+                rerr(e)
+            }
+        })?;
+        crc.update(&texels[done..end]);
+        done = end;
+    }
+    check_crc(crc.finish(), header.crc32).map_err(fmt)?;
+    let mut probe = [0u8; 1];
+    if r.read(&mut probe).map_err(rerr)? != 0 {
+        return Err(fmt("data follows the payload (the file grew after it was written)".into()));
+    }
+    Btf::new(header.grid, header.width, header.height, texels).map_err(|e| IoError::from(e).in_file(path))
+}
+
+/// Reads and checks only the header of an `.hbtf` file (for `hitex btf
+/// info`): magic, version, sizes and that the file holds exactly the declared
+/// payload. The CRC is reported but not verified; [`read_hbtf`] verifies it.
+pub fn read_hbtf_header(path: &Path) -> Result<HbtfHeader, IoError> {
+    let rerr = |source: std::io::Error| IoError::Read { path: path.to_path_buf(), source };
+    let file = std::fs::File::open(path).map_err(rerr)?;
+    let len = file.metadata().map_err(rerr)?.len();
+    let header = read_header(&mut std::io::BufReader::new(file), len, path)?;
+    check_trailing(len, &header).map_err(|m| IoError::Format { path: path.to_path_buf(), message: m })?;
+    Ok(header)
+}
+
+/// Parses a whole `.hbtf` file held in memory; `name` is the file named in
+/// errors. All checks of [`read_hbtf`] apply.
+pub fn hbtf_from_bytes(bytes: &[u8], name: &str) -> Result<Btf, IoError> {
+    let path = Path::new(name);
+    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+    let mut r = bytes;
+    let header = read_header(&mut r, bytes.len() as u64, path)?;
+    check_trailing(bytes.len() as u64, &header).map_err(fmt)?;
+    let payload = &bytes[header.header_bytes as usize..];
+    check_crc(crc32(payload), header.crc32).map_err(fmt)?;
+    Btf::new(header.grid, header.width, header.height, payload.to_vec()).map_err(|e| IoError::from(e).in_file(path))
+}
+
+fn check_crc(actual: u32, recorded: u32) -> Result<(), String> {
+    if actual != recorded {
+        return Err(format!(
+            "payload CRC-32 is {actual:#010x} but the header records {recorded:#010x} (the texels are corrupt)"
+        ));
+    }
+    Ok(())
+}
+
+fn check_trailing(file_len: u64, h: &HbtfHeader) -> Result<(), String> {
+    let end = h.header_bytes as u64 + h.payload_bytes;
+    if file_len > end {
+        return Err(format!("{} bytes follow the {}-byte payload", file_len - end, h.payload_bytes));
+    }
+    Ok(())
+}
+
+/// Reads the header from `r`, which is at the start of a file of `file_len`
+/// bytes, and checks it: magic, version, flags, header length, grid, shape
+/// limits, and that the declared payload equals the shape's size and fits in
+/// the rest of the file.
+fn read_header(r: &mut impl Read, file_len: u64, path: &Path) -> Result<HbtfHeader, IoError> {
+    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+    let mut read = |buf: &mut [u8], what: &str, at: usize| -> Result<(), IoError> {
+        r.read_exact(buf).map_err(|e| {
+            if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                fmt(format!("the file ends inside the header: {what} at byte {at} (file of {file_len} bytes)"))
+            } else {
+                IoError::Read { path: path.to_path_buf(), source: e }
+            }
+        })
+    };
+    let mut fixed = [0u8; FIXED_HEADER];
+    read(&mut fixed[..4], "magic", 0)?;
+    if fixed[..4] != HBTF_MAGIC {
+        return Err(fmt(format!(
+            "not an .hbtf file: magic {:?}, expected \"HBTF\"",
+            String::from_utf8_lossy(&fixed[..4])
+        )));
+    }
+    read(&mut fixed[4..], "fixed header fields", 4)?;
+    let field = |i: usize| u32::from_le_bytes([fixed[i], fixed[i + 1], fixed[i + 2], fixed[i + 3]]);
+    let (version, header_bytes, width, height) = (field(4), field(8), field(12), field(16));
+    let (theta_count, phi_count, flags) = (field(20), field(24), field(28));
+    if version != HBTF_VERSION {
+        return Err(fmt(format!(
+            "format version {version} is not supported (this build reads version {HBTF_VERSION})"
+        )));
+    }
+    if flags != 0 {
+        return Err(fmt(format!("header flags {flags:#x} are unknown (version 1 has none)")));
+    }
+    if theta_count == 0 || theta_count as usize > MAX_ANGLES {
+        return Err(fmt(format!("header declares {theta_count} polar angles; 1..={MAX_ANGLES} are allowed")));
+    }
+    if phi_count == 0 || phi_count as usize > MAX_ANGLES {
+        return Err(fmt(format!("header declares {phi_count} azimuths; 1..={MAX_ANGLES} are allowed")));
+    }
+    let theta_count = theta_count as usize;
+    let want = header_len(theta_count);
+    if header_bytes as usize != want {
+        return Err(fmt(format!(
+            "header length field is {header_bytes} bytes; {theta_count} polar angles make a {want}-byte header"
+        )));
+    }
+    if file_len < want as u64 {
+        return Err(fmt(format!("the file of {file_len} bytes is shorter than its {want}-byte header")));
+    }
+    let mut list = vec![0u8; 4 * theta_count];
+    read(&mut list, "polar angle list", FIXED_HEADER)?;
+    let theta: Vec<f32> = list.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+    let grid = AngularGrid::new(theta, phi_count as usize).map_err(|e| fmt(format!("header grid: {e}")))?;
+    let size = checked_size(&grid, width, height).map_err(|e| fmt(format!("header shape: {e}")))?;
+    let mut tail = [0u8; HEADER_TAIL];
+    read(&mut tail, "payload length and CRC", want - HEADER_TAIL)?;
+    let payload_bytes = u64::from_le_bytes([tail[0], tail[1], tail[2], tail[3], tail[4], tail[5], tail[6], tail[7]]);
+    let crc = u32::from_le_bytes([tail[8], tail[9], tail[10], tail[11]]);
+    if payload_bytes != size as u64 {
+        return Err(fmt(format!(
+            "header declares a payload of {payload_bytes} bytes; {width}x{height} texels × {}² directions need {size}",
+            grid.directions()
+        )));
+    }
+    let remaining = file_len - want as u64;
+    if payload_bytes > remaining {
+        return Err(fmt(format!(
+            "header declares a payload of {payload_bytes} bytes but only {remaining} follow the header (truncated file)"
+        )));
+    }
+    Ok(HbtfHeader { version, header_bytes, width, height, grid, flags, payload_bytes, crc32: crc })
+}
+
+/// CRC-32/IEEE (reflected polynomial 0xEDB88320, as zip, PNG and gzip),
+/// slicing by 8 bytes.
+pub fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = Crc32::new();
+    c.update(bytes);
+    c.finish()
+}
+
+/// An incremental CRC-32/IEEE.
+#[derive(Debug, Clone, Copy)]
+pub struct Crc32(u32);
+
+const CRC_TABLES: [[u32; 256]; 8] = {
+    let mut t = [[0u32; 256]; 8];
+    let mut i = 0;
+    while i < 256 {
+        let mut c = i as u32;
+        let mut k = 0;
+        while k < 8 {
+            c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+            k += 1;
+        }
+        t[0][i] = c;
+        i += 1;
+    }
+    let mut s = 1;
+    while s < 8 {
+        let mut i = 0;
+        while i < 256 {
+            let prev = t[s - 1][i];
+            t[s][i] = (prev >> 8) ^ t[0][(prev & 0xff) as usize];
+            i += 1;
+        }
+        s += 1;
+    }
+    t
+};
+
+impl Default for Crc32 {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Crc32 {
+    /// A CRC of no bytes.
+    pub fn new() -> Self {
+        Self(!0)
+    }
+
+    /// Adds bytes.
+    pub fn update(&mut self, bytes: &[u8]) {
+        let t = &CRC_TABLES;
+        let mut c = self.0;
+        let mut chunks = bytes.chunks_exact(8);
+        for b in &mut chunks {
+            let lo = c ^ u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+            c = t[7][(lo & 0xff) as usize]
+                ^ t[6][((lo >> 8) & 0xff) as usize]
+                ^ t[5][((lo >> 16) & 0xff) as usize]
+                ^ t[4][(lo >> 24) as usize]
+                ^ t[3][b[4] as usize]
+                ^ t[2][b[5] as usize]
+                ^ t[1][b[6] as usize]
+                ^ t[0][b[7] as usize];
+        }
+        for &b in chunks.remainder() {
+            c = (c >> 8) ^ t[0][((c ^ b as u32) & 0xff) as usize];
+        }
+        self.0 = c;
+    }
+
+    /// The CRC of the bytes added so far.
+    pub fn finish(&self) -> u32 {
+        !self.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn tmpdir(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("hitex-io-btf-file-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn small_btf(seed: u32) -> Btf {
+        let grid = AngularGrid::new(vec![0.0, 30.0, 60.0], 4).unwrap();
+        let n = checked_size(&grid, 3, 2).unwrap();
+        let mut s = seed.wrapping_mul(2_654_435_761).wrapping_add(1);
+        let texels = (0..n)
+            .map(|_| {
+                s ^= s << 13;
+                s ^= s >> 17;
+                s ^= s << 5;
+                (s >> 24) as u8
+            })
+            .collect();
+        Btf::new(grid, 3, 2, texels).unwrap()
+    }
+
+    fn bytes_of(btf: &Btf) -> Vec<u8> {
+        let mut b = encode_header(btf, crc32(btf.texels()));
+        b.extend_from_slice(btf.texels());
+        b
+    }
+
+    #[test]
+    fn crc32_matches_the_standard_check_value() {
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+        assert_eq!(crc32(b""), 0);
+        let data: Vec<u8> = (0..1000u32).map(|i| (i * 7 + 3) as u8).collect();
+        let mut c = Crc32::new();
+        for part in data.chunks(13) {
+            c.update(part);
+        }
+        assert_eq!(c.finish(), crc32(&data));
+    }
+
+    #[test]
+    fn btf_file_round_trip() {
+        let d = tmpdir("round");
+        let p = d.join("a.hbtf");
+        let btf = small_btf(1);
+        write_hbtf(&p, &btf).unwrap();
+        assert_eq!(read_hbtf(&p).unwrap(), btf);
+        let h = read_hbtf_header(&p).unwrap();
+        assert_eq!((h.version, h.width, h.height, h.grid.clone()), (1, 3, 2, btf.grid().clone()));
+        assert_eq!(h.payload_bytes, btf.texels().len() as u64);
+        assert_eq!(h.header_bytes as u64 + h.payload_bytes, std::fs::metadata(&p).unwrap().len());
+        assert_eq!(h.images(), 144);
+        assert_eq!(hbtf_from_bytes(&std::fs::read(&p).unwrap(), "mem").unwrap(), btf);
+        // overwriting works and leaves only the file
+        write_hbtf(&p, &small_btf(2)).unwrap();
+        assert_eq!(read_hbtf(&p).unwrap(), small_btf(2));
+        assert_eq!(std::fs::read_dir(&d).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn btf_file_truncated_at_every_7th_byte_is_an_error() {
+        let d = tmpdir("trunc");
+        let bytes = bytes_of(&small_btf(3));
+        for k in (0..bytes.len()).step_by(7) {
+            let e = hbtf_from_bytes(&bytes[..k], "cut.hbtf").unwrap_err().to_string();
+            assert!(e.contains("cut.hbtf"), "{k}: {e}");
+        }
+        for k in [0, 5, 31, 40, 56, 57, 100, bytes.len() - 1] {
+            let p = d.join(format!("cut{k}.hbtf"));
+            std::fs::write(&p, &bytes[..k]).unwrap();
+            let e = read_hbtf(&p).unwrap_err().to_string();
+            assert!(e.contains(&format!("cut{k}.hbtf")), "{e}");
+            assert!(read_hbtf_header(&p).is_err());
+        }
+        // trailing bytes are refused too
+        let mut long = bytes.clone();
+        long.push(0);
+        assert!(hbtf_from_bytes(&long, "long").unwrap_err().to_string().contains("follow"));
+        let p = d.join("long.hbtf");
+        std::fs::write(&p, &long).unwrap();
+        assert!(read_hbtf(&p).is_err() && read_hbtf_header(&p).is_err());
+    }
+
+    fn set_u32(b: &mut [u8], at: usize, v: u32) {
+        b[at..at + 4].copy_from_slice(&v.to_le_bytes());
+    }
+
+    #[test]
+    fn btf_file_absurd_headers_are_refused() {
+        let good = bytes_of(&small_btf(4));
+        let check = |b: Vec<u8>, needle: &str| {
+            let e = hbtf_from_bytes(&b, "bad.hbtf").unwrap_err().to_string();
+            assert!(e.contains("bad.hbtf") && e.contains(needle), "{needle}: {e}");
+        };
+        let mut b = good.clone();
+        set_u32(&mut b, 12, 1_000_000);
+        check(b, "side");
+        let mut b = good.clone();
+        set_u32(&mut b, 20, 1_000_000_000);
+        check(b, "polar angles");
+        let mut b = good.clone();
+        set_u32(&mut b, 24, 0);
+        check(b, "azimuths");
+        let mut b = good.clone();
+        set_u32(&mut b, 8, 9999);
+        check(b, "header length");
+        let mut b = good.clone();
+        set_u32(&mut b, 28, 1);
+        check(b, "flags");
+        let mut b = good.clone();
+        b[36..40].copy_from_slice(&95f32.to_le_bytes());
+        check(b, "grid");
+        let mut b = good.clone();
+        b[44..52].copy_from_slice(&(2u64 << 30).to_le_bytes());
+        check(b, "payload");
+
+        // the paper's 48 MiB shape claimed in a 1 KiB file: refused from the header alone
+        let grid = AngularGrid::paper();
+        let size = checked_size(&grid, 32, 32).unwrap();
+        let mut h = Vec::new();
+        h.extend_from_slice(b"HBTF");
+        for v in [1u32, header_len(8) as u32, 32, 32, 8, 16, 0] {
+            h.extend_from_slice(&v.to_le_bytes());
+        }
+        for t in grid.theta_deg() {
+            h.extend_from_slice(&t.to_le_bytes());
+        }
+        h.extend_from_slice(&(size as u64).to_le_bytes());
+        h.extend_from_slice(&0u32.to_le_bytes());
+        h.resize(1024, 0);
+        let t = std::time::Instant::now();
+        check(h, "truncated");
+        assert!(t.elapsed().as_secs_f32() < 1.0);
+    }
+
+    #[test]
+    fn btf_file_bad_magic_version_and_crc() {
+        let good = bytes_of(&small_btf(5));
+        let mut b = good.clone();
+        b[0] = b'X';
+        assert!(hbtf_from_bytes(&b, "m").unwrap_err().to_string().contains("magic"));
+        let mut b = good.clone();
+        set_u32(&mut b, 4, 2);
+        assert!(hbtf_from_bytes(&b, "v").unwrap_err().to_string().contains("version 2"));
+        // a flipped payload bit
+        let mut b = good.clone();
+        let last = b.len() - 1;
+        b[last] ^= 0x10;
+        assert!(hbtf_from_bytes(&b, "c").unwrap_err().to_string().contains("CRC"));
+        // a flipped CRC bit, through the file reader
+        let mut b = good.clone();
+        b[52] ^= 1;
+        let d = tmpdir("crc");
+        let p = d.join("crc.hbtf");
+        std::fs::write(&p, &b).unwrap();
+        let e = read_hbtf(&p).unwrap_err().to_string();
+        assert!(e.contains("crc.hbtf") && e.contains("CRC"), "{e}");
+        // the header alone still reads
+        assert!(read_hbtf_header(&p).is_ok());
+    }
+
+    #[test]
+    fn btf_file_failed_writes_leave_nothing_behind() {
+        let d = tmpdir("nowrite");
+        let btf = small_btf(6);
+        // missing folder
+        let e = write_hbtf(&d.join("no/such/dir/x.hbtf"), &btf).unwrap_err().to_string();
+        assert!(e.contains("x.hbtf"), "{e}");
+        // the target is a folder: the rename fails after the data was written
+        std::fs::create_dir(d.join("taken.hbtf")).unwrap();
+        let e = write_hbtf(&d.join("taken.hbtf"), &btf).unwrap_err().to_string();
+        assert!(e.contains("taken.hbtf"), "{e}");
+        let names: Vec<_> = std::fs::read_dir(&d).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("taken.hbtf")], "temporary file left behind");
+        // a read-only folder (root may write there anyway: then only check no temp file remains)
+        let ro = d.join("ro");
+        std::fs::create_dir(&ro).unwrap();
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o555)).unwrap();
+        }
+        let r = write_hbtf(&ro.join("y.hbtf"), &btf);
+        let left: Vec<_> = std::fs::read_dir(&ro).unwrap().map(|e| e.unwrap().file_name()).collect();
+        match r {
+            Err(e) => {
+                assert!(e.to_string().contains("y.hbtf"), "{e}");
+                assert!(left.is_empty(), "{left:?}");
+            }
+            Ok(()) => assert_eq!(left, vec![std::ffi::OsString::from("y.hbtf")]),
+        }
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o755)).unwrap();
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 256, .. ProptestConfig::default() })]
+
+        #[test]
+        fn btf_file_arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..200)) {
+            let _ = hbtf_from_bytes(&bytes, "fuzz");
+        }
+
+        #[test]
+        fn btf_file_mutated_files_never_panic(at in 0usize..2700, value in any::<u8>(), cut in 0usize..2700) {
+            let mut b = bytes_of(&small_btf(7));
+            let at = at % b.len();
+            b[at] = value;
+            b.truncate(cut.max(at + 1));
+            if let Ok(btf) = hbtf_from_bytes(&b, "fuzz") {
+                // only unchanged texels decode (the CRC covers the payload, not the angles)
+                let original = small_btf(7);
+                prop_assert_eq!(btf.texels(), original.texels());
+            }
+        }
+    }
+}

@@ -1,0 +1,1053 @@
+//! Measured BTF image sets in and out.
+//!
+//! Two naming conventions are read, with the four angles in degrees:
+//!
+//! * **UBO** (Bonn BTF database, UBO2003 and ATRIUM): zip archives or folders of
+//!   `tl015 pl060 tv030 pv120.jpg`, space-separated;
+//! * **UTIA** (Prague): folders (or zips) of `tl015_pl060_tv030_pv120.png`,
+//!   underscore-separated.
+//!
+//! `tl`/`pl` are the light's polar angle and azimuth, `tv`/`pv` the view's.
+//! Names are parsed leniently: any case, fields in any order, other tokens
+//! (a material prefix) and folders inside the archive are allowed, angles
+//! may have decimals. Files that do not carry all four angles, hidden files
+//! and macOS `__MACOSX` resource forks, and files with other extensions are
+//! listed as ignored. `.png`, `.jpg` and `.jpeg` are read (the `image` crate
+//! is built with PNG and JPEG only); an `.exr` set is refused with a request
+//! to convert it to PNG.
+//!
+//! A set whose directions are exactly the target grid (all θ × φ
+//! combinations, e.g. one written by [`export_image_set`]) is used as is;
+//! any other set (the 81 Bonn directions on rings θ = 0, 15, …, 75° with
+//! 1, 6, 12, 18, 20, 24 azimuths) is resampled onto the target grid, see
+//! [`import_image_set`].
+
+use crate::IoError;
+use crate::image_io::{MAX_IMAGE_FILE_BYTES, write_atomic};
+use hitex_core::btf::dataset::{MAX_BTF_SIDE, MAX_BTF_TEXELS, checked_size};
+use hitex_core::btf::{AngularGrid, Btf};
+use hitex_core::texture::{linear_to_srgb_u8, srgb_to_linear};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// Most images accepted in one set.
+pub const MAX_SET_IMAGES: usize = 1 << 20;
+
+/// Nearest measured views (and lights) blended per target direction.
+const NEIGHBOURS: usize = 4;
+
+/// Angular distance (radians) below which a measured direction is the target.
+const EXACT_RAD: f64 = 1e-6;
+
+/// Largest difference (degrees) between a named angle and a grid angle for
+/// the two to be the same direction (names carry rounded integer degrees).
+const MATCH_TOL_DEG: f32 = 0.501;
+
+/// Folder depth searched below an image-set folder.
+const MAX_DEPTH: usize = 8;
+
+/// Entries listed at most in error messages.
+const LISTED_IN_ERRORS: usize = 20;
+
+/// Entries listed at most in [`ImageSetReport::missing`].
+const LISTED_IN_REPORT: usize = 1000;
+
+/// The naming convention of an exported set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Convention {
+    /// Bonn: `tl015 pl060 tv030 pv120.png` (the Bonn sets are JPEG; we write
+    /// PNG, so the extension is `.png`; the importer accepts both).
+    Ubo,
+    /// UTIA: `tl015_pl060_tv030_pv120.png`.
+    Utia,
+}
+
+impl Convention {
+    /// The file name of one image, angles in integer degrees.
+    pub fn file_name(self, tl: u32, pl: u32, tv: u32, pv: u32) -> String {
+        let sep = match self {
+            Convention::Ubo => ' ',
+            Convention::Utia => '_',
+        };
+        format!("tl{tl:03}{sep}pl{pl:03}{sep}tv{tv:03}{sep}pv{pv:03}.png")
+    }
+}
+
+/// What [`import_image_set`] found and did.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ImageSetReport {
+    /// Images used (after duplicates and ignored files are set aside).
+    pub images: usize,
+    /// Distinct measured view directions.
+    pub view_dirs: usize,
+    /// Distinct measured light directions.
+    pub light_dirs: usize,
+    /// Measured (view, light) combinations without an image, named as
+    /// `tl… pl… tv… pv…` (when resampling: they were filled from their
+    /// neighbours; at most 1000 are listed, then a count of the rest).
+    pub missing: Vec<String>,
+    /// Files whose four angles repeat an earlier file's (in name order); the
+    /// first is kept.
+    pub duplicated: Vec<String>,
+    /// Files whose names do not follow either convention, hidden files, and
+    /// files of other types.
+    pub ignored: Vec<String>,
+    /// Whether the images were resampled onto the target grid.
+    pub resampled: bool,
+    /// How the target images were made.
+    pub method: String,
+}
+
+/// A direction as named: degrees, φ in [0, 360).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Dir {
+    theta: f32,
+    phi: f32,
+}
+
+/// A direction's identity: θ and φ in hundredths of a degree.
+type Key = (i32, i32);
+
+impl Dir {
+    fn new(theta: f32, phi: f32) -> Self {
+        let mut phi = phi.rem_euclid(360.0);
+        if phi >= 360.0 {
+            phi = 0.0;
+        }
+        Self { theta, phi }
+    }
+
+    fn key(self) -> Key {
+        ((self.theta * 100.0).round() as i32, (self.phi * 100.0).round() as i32 % 36_000)
+    }
+
+    fn vector(self) -> [f64; 3] {
+        unit(self.theta as f64, self.phi as f64)
+    }
+}
+
+fn unit(theta_deg: f64, phi_deg: f64) -> [f64; 3] {
+    let (st, ct) = theta_deg.to_radians().sin_cos();
+    let (sp, cp) = phi_deg.to_radians().sin_cos();
+    [st * cp, st * sp, ct]
+}
+
+/// Angle between unit vectors, radians.
+fn angle(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).clamp(-1.0, 1.0).acos()
+}
+
+fn circular_diff(a: f32, b: f32) -> f32 {
+    let d = (a - b).rem_euclid(360.0);
+    d.min(360.0 - d)
+}
+
+fn angle_str(a: f32) -> String {
+    if (a - a.round()).abs() < 1e-3 { format!("{:03}", a.round() as i64) } else { format!("{a}") }
+}
+
+fn combo_name(light: Dir, view: Dir) -> String {
+    format!(
+        "tl{} pl{} tv{} pv{}",
+        angle_str(light.theta),
+        angle_str(light.phi),
+        angle_str(view.theta),
+        angle_str(view.phi)
+    )
+}
+
+/// What a file name says.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Name {
+    /// A PNG or JPEG image with `[tl, pl, tv, pv]`.
+    Image([f32; 4]),
+    /// An OpenEXR image with the angles.
+    Exr,
+    /// Anything else.
+    Other,
+}
+
+/// Parses one file name (without folders).
+fn parse_name(base: &str) -> Name {
+    let lower = base.trim().to_ascii_lowercase();
+    if lower.starts_with('.') {
+        return Name::Other;
+    }
+    let Some((stem, ext)) = lower.rsplit_once('.') else {
+        return Name::Other;
+    };
+    let exr = match ext {
+        "png" | "jpg" | "jpeg" => false,
+        "exr" => true,
+        _ => return Name::Other,
+    };
+    let mut vals: [Option<f32>; 4] = [None; 4];
+    for tok in stem.split([' ', '_', '-', '+', ',']).filter(|t| !t.is_empty()) {
+        for (slot, key) in vals.iter_mut().zip(["tl", "pl", "tv", "pv"]) {
+            let Some(num) = tok.strip_prefix(key) else { continue };
+            if num.is_empty() || !num.chars().all(|c| c.is_ascii_digit() || c == '.') {
+                continue;
+            }
+            let Ok(v) = num.parse::<f32>() else { continue };
+            if !v.is_finite() || slot.is_some() {
+                return Name::Other;
+            }
+            *slot = Some(v);
+        }
+    }
+    match vals {
+        [Some(tl), Some(pl), Some(tv), Some(pv)] => {
+            if exr {
+                Name::Exr
+            } else {
+                Name::Image([tl, pl, tv, pv])
+            }
+        }
+        _ => Name::Other,
+    }
+}
+
+/// Where one file of a set is.
+#[derive(Debug, Clone)]
+enum Loc {
+    File(PathBuf),
+    Zip(usize),
+}
+
+/// One file of a set.
+#[derive(Debug, Clone)]
+struct Listed {
+    /// Relative path or archive entry, as reported.
+    shown: String,
+    /// The file name without folders.
+    base: String,
+    loc: Loc,
+}
+
+/// A folder or a zip archive of images.
+enum Source {
+    Dir,
+    Zip(zip::ZipArchive<std::fs::File>),
+}
+
+impl Source {
+    fn open(path: &Path) -> Result<(Source, Vec<Listed>), IoError> {
+        let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+        let meta = std::fs::metadata(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
+        let mut listed = Vec::new();
+        let source = if meta.is_dir() {
+            walk(path, path, 0, &mut listed)?;
+            Source::Dir
+        } else {
+            let file =
+                std::fs::File::open(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
+            let mut zip = zip::ZipArchive::new(file)
+                .map_err(|e| fmt(format!("neither a folder nor a readable zip archive: {e}")))?;
+            for i in 0..zip.len() {
+                let f = zip.by_index_raw(i).map_err(|e| fmt(format!("zip entry {i}: {e}")))?;
+                if f.is_dir() {
+                    continue;
+                }
+                let shown = String::from_utf8_lossy(f.name_raw()).into_owned();
+                let base = shown.rsplit(['/', '\\']).next().unwrap_or(&shown).to_string();
+                let base = if shown.split(['/', '\\']).any(|c| c == "__MACOSX") { format!(".{base}") } else { base };
+                listed.push(Listed { shown, base, loc: Loc::Zip(i) });
+            }
+            Source::Zip(zip)
+        };
+        listed.sort_by(|a, b| a.shown.cmp(&b.shown));
+        Ok((source, listed))
+    }
+
+    /// The path named in errors about `item`.
+    fn err_path(root: &Path, item: &Listed) -> PathBuf {
+        match &item.loc {
+            Loc::File(p) => p.clone(),
+            Loc::Zip(_) => PathBuf::from(format!("{}:{}", root.display(), item.shown)),
+        }
+    }
+
+    fn read(&mut self, root: &Path, item: &Listed) -> Result<Vec<u8>, IoError> {
+        let at = Self::err_path(root, item);
+        let fmt = |m: String| IoError::Format { path: at.clone(), message: m };
+        let too_big = |n: u64| fmt(format!("file of {n} bytes exceeds the {MAX_IMAGE_FILE_BYTES}-byte limit"));
+        match (&mut *self, &item.loc) {
+            (_, Loc::File(p)) => {
+                let rerr = |source: std::io::Error| IoError::Read { path: p.clone(), source };
+                let len = std::fs::metadata(p).map_err(rerr)?.len();
+                if len > MAX_IMAGE_FILE_BYTES {
+                    return Err(too_big(len));
+                }
+                std::fs::read(p).map_err(rerr)
+            }
+            (Source::Zip(zip), Loc::Zip(i)) => {
+                let f = zip.by_index(*i).map_err(|e| fmt(format!("cannot open the zip entry: {e}")))?;
+                if f.size() > MAX_IMAGE_FILE_BYTES {
+                    return Err(too_big(f.size()));
+                }
+                let mut buf = Vec::with_capacity(f.size().min(64 << 20) as usize);
+                f.take(MAX_IMAGE_FILE_BYTES + 1)
+                    .read_to_end(&mut buf)
+                    .map_err(|e| fmt(format!("cannot read the zip entry: {e}")))?;
+                if buf.len() as u64 > MAX_IMAGE_FILE_BYTES {
+                    return Err(too_big(buf.len() as u64));
+                }
+                Ok(buf)
+            }
+            (Source::Dir, Loc::Zip(_)) => Err(fmt("internal: an archive entry in a folder set".into())),
+        }
+    }
+}
+
+fn walk(root: &Path, dir: &Path, depth: usize, out: &mut Vec<Listed>) -> Result<(), IoError> {
+    let rerr = |source: std::io::Error| IoError::Read { path: dir.to_path_buf(), source };
+    let mut items = std::fs::read_dir(dir).map_err(rerr)?.collect::<Result<Vec<_>, _>>().map_err(rerr)?;
+    items.sort_by_key(|e| e.file_name());
+    for e in items {
+        let p = e.path();
+        let base = e.file_name().to_string_lossy().into_owned();
+        let shown = p.strip_prefix(root).unwrap_or(&p).to_string_lossy().into_owned();
+        // follows symbolic links to files, never into folders (no cycles)
+        let ft = e.file_type().map_err(|source| IoError::Read { path: p.clone(), source })?;
+        if ft.is_dir() {
+            if depth < MAX_DEPTH && !base.starts_with('.') && base != "__MACOSX" {
+                walk(root, &p, depth + 1, out)?;
+            }
+        } else if ft.is_file() || p.is_file() {
+            out.push(Listed { shown, base, loc: Loc::File(p) });
+        }
+    }
+    Ok(())
+}
+
+/// Decodes a PNG or JPEG to RGB8, checking the declared size first.
+fn decode_rgb(bytes: &[u8], path: &Path) -> Result<(u32, u32, Vec<u8>), IoError> {
+    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+    let reader = || -> Result<_, IoError> {
+        let r = image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
+        if r.format().is_none() {
+            return Err(fmt("not a PNG or JPEG image (unrecognised signature)".into()));
+        }
+        Ok(r)
+    };
+    let (w, h) = reader()?.into_dimensions().map_err(|e| fmt(format!("cannot read the image header: {e}")))?;
+    let side = hitex_core::texture::image::MAX_IMAGE_SIDE;
+    if w == 0 || h == 0 || w > side || h > side {
+        return Err(fmt(format!("declared size {w}x{h} is outside 1..={side} per side")));
+    }
+    let img = reader()?.decode().map_err(|e| fmt(format!("cannot decode the image: {e}")))?.into_rgb8();
+    let (w, h) = img.dimensions();
+    Ok((w, h, img.into_raw()))
+}
+
+/// sRGB code → linear light.
+fn linear_lut() -> [f32; 256] {
+    let mut t = [0.0; 256];
+    for (i, v) in t.iter_mut().enumerate() {
+        *v = srgb_to_linear(i as f32 / 255.0);
+    }
+    t
+}
+
+/// Output weights of an area (box) filter from `src` samples to `dst`.
+fn area_weights(src: usize, dst: usize) -> Vec<Vec<(usize, f32)>> {
+    let scale = src as f64 / dst as f64;
+    (0..dst)
+        .map(|o| {
+            let (a, b) = (o as f64 * scale, (o + 1) as f64 * scale);
+            let mut ws = Vec::new();
+            let mut i = a.floor() as usize;
+            while (i as f64) < b && i < src {
+                let (lo, hi) = (a.max(i as f64), b.min((i + 1) as f64));
+                if hi > lo {
+                    ws.push((i, ((hi - lo) / scale) as f32));
+                }
+                i += 1;
+            }
+            ws
+        })
+        .collect()
+}
+
+/// Centre-crops an RGB8 image to a square and box-filters it to
+/// `size`×`size` in linear light (unchanged when already that size).
+fn fit(rgb: Vec<u8>, w: u32, h: u32, size: Option<u32>, lut: &[f32; 256]) -> Vec<u8> {
+    let Some(s) = size else { return rgb };
+    let (w, h, s) = (w as usize, h as usize, s as usize);
+    let c = w.min(h);
+    let (x0, y0) = ((w - c) / 2, (h - c) / 2);
+    let crop: Vec<u8> = if c == w && c == h {
+        rgb
+    } else {
+        (0..c).flat_map(|y| rgb[((y0 + y) * w + x0) * 3..((y0 + y) * w + x0 + c) * 3].iter().copied()).collect()
+    };
+    if c == s {
+        return crop;
+    }
+    let wts = area_weights(c, s);
+    // rows first: c rows × s columns
+    let mut tmp = vec![0f32; c * s * 3];
+    for y in 0..c {
+        for (ox, ws) in wts.iter().enumerate() {
+            for &(x, wt) in ws {
+                for ch in 0..3 {
+                    tmp[(y * s + ox) * 3 + ch] += wt * lut[crop[(y * c + x) * 3 + ch] as usize];
+                }
+            }
+        }
+    }
+    let mut out = vec![0u8; s * s * 3];
+    for (oy, ws) in wts.iter().enumerate() {
+        for ox in 0..s {
+            for ch in 0..3 {
+                let v: f32 = ws.iter().map(|&(y, wt)| wt * tmp[(y * s + ox) * 3 + ch]).sum();
+                out[(oy * s + ox) * 3 + ch] = linear_to_srgb_u8(v);
+            }
+        }
+    }
+    out
+}
+
+/// Distinct directions in (θ, φ) order and the index of each key.
+fn distinct(dirs: impl Iterator<Item = Dir>) -> (Vec<Dir>, HashMap<Key, usize>) {
+    let map: BTreeMap<Key, Dir> = dirs.map(|d| (d.key(), d)).collect();
+    let list: Vec<Dir> = map.values().copied().collect();
+    let index = map.keys().enumerate().map(|(i, &k)| (k, i)).collect();
+    (list, index)
+}
+
+/// The grid of a set's own θ rings with the largest azimuth count found.
+fn infer_grid(views: &[Dir], lights: &[Dir]) -> Option<AngularGrid> {
+    let mut rings: BTreeMap<i32, (f32, BTreeSet<i32>)> = BTreeMap::new();
+    for d in views.iter().chain(lights) {
+        let (tk, pk) = d.key();
+        rings.entry(tk).or_insert((d.theta, BTreeSet::new())).1.insert(pk);
+    }
+    let n = rings.values().map(|r| r.1.len()).max()?;
+    AngularGrid::new(rings.values().map(|r| r.0).collect(), n).ok()
+}
+
+/// For each grid direction, the measured direction naming it (within half a
+/// degree), or `None` when some grid direction has none.
+fn match_grid(grid: &AngularGrid, dirs: &[Dir]) -> Option<Vec<usize>> {
+    let mut out = Vec::with_capacity(grid.directions());
+    for &t in grid.theta_deg() {
+        for j in 0..grid.phi_count() {
+            let p = grid.phi_deg(j);
+            let err = |d: &Dir| (d.theta - t).abs() + circular_diff(d.phi, p);
+            let best = dirs
+                .iter()
+                .enumerate()
+                .filter(|(_, d)| (d.theta - t).abs() <= MATCH_TOL_DEG && circular_diff(d.phi, p) <= MATCH_TOL_DEG)
+                .min_by(|a, b| err(a.1).total_cmp(&err(b.1)))?;
+            out.push(best.0);
+        }
+    }
+    Some(out)
+}
+
+fn describe_grid(g: &AngularGrid) -> String {
+    let th: Vec<String> = g.theta_deg().iter().map(|t| format!("{t}")).collect();
+    format!("θ = [{}]° × {} azimuths", th.join(", "), g.phi_count())
+}
+
+/// The `k` nearest measured directions to `target` with weights ∝ 1/d²
+/// (summing to 1), or the one measured direction at the target.
+fn neighbours(target: [f64; 3], measured: &[[f64; 3]]) -> Vec<(usize, f32)> {
+    let mut d: Vec<(f64, usize)> = measured.iter().enumerate().map(|(i, &v)| (angle(target, v), i)).collect();
+    d.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    match d.first() {
+        None => Vec::new(),
+        Some(&(d0, i0)) if d0 < EXACT_RAD => vec![(i0, 1.0)],
+        Some(_) => {
+            d.truncate(NEIGHBOURS);
+            let w: Vec<f64> = d.iter().map(|&(x, _)| 1.0 / (x * x)).collect();
+            let sum: f64 = w.iter().sum();
+            d.iter().zip(w).map(|(&(_, i), w)| (i, (w / sum) as f32)).collect()
+        }
+    }
+}
+
+/// The measured target: a grid direction clamped to the outermost measured
+/// ring at its azimuth, as a unit vector.
+fn lookup(grid: &AngularGrid, dir: usize, theta_max: f32) -> [f64; 3] {
+    let (ti, pj) = (dir / grid.phi_count(), dir % grid.phi_count());
+    unit(grid.theta_deg()[ti].min(theta_max) as f64, grid.phi_deg(pj) as f64)
+}
+
+/// Reads a BTF image set (a folder or zip archive named in either convention)
+/// onto an angular grid.
+///
+/// * `grid`: the target grid; `None` takes the set's own grid when its
+///   directions are a regular θ list × φ count (all combinations present),
+///   else [`AngularGrid::paper`].
+/// * `size`: each image is centre-cropped to a square and box-filtered (area
+///   weights, in linear light) to `size`×`size`; `None` keeps the images'
+///   size. All images of a set must have the same size.
+/// * `progress(done, total)`: called after each image read and each target
+///   image built (`total` counts both).
+///
+/// When every target direction is a measured one (within half a degree, as
+/// integer-degree names allow), the images are used directly and every
+/// target (view, light) combination must have its image, else the error lists
+/// the missing ones. Otherwise the set is **resampled**: each target image is
+/// an inverse-distance blend in linear light (sRGB decoded, re-encoded after
+/// blending) of the 4 nearest measured view directions × the 4 nearest
+/// measured light directions, distances being angles between unit vectors on
+/// the hemisphere and weights ∝ 1/d² (the product of the view and light
+/// weights, renormalised over the combinations that have an image); a
+/// measured direction within 1e-6 rad of the target is copied. Target θ
+/// beyond the outermost measured ring (grazing angles) is extrapolated by
+/// clamping to that ring at the same azimuth. A target whose 4 × 4
+/// neighbourhood has no image at all (sparse sets) blends the 4 nearest
+/// measured (view, light) pairs by dv² + dl² instead.
+///
+/// Duplicates (the same four angles twice) keep the first file in name
+/// order. Errors name the file: unreadable, corrupt or differently sized
+/// images, EXR images, or a set with no image named in either convention.
+pub fn import_image_set(
+    path: &Path,
+    grid: Option<AngularGrid>,
+    size: Option<u32>,
+    progress: &dyn Fn(usize, usize),
+) -> Result<(Btf, ImageSetReport), IoError> {
+    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+    if let Some(s) = size
+        && (s == 0 || s > MAX_BTF_SIDE)
+    {
+        return Err(fmt(format!("image size {s} is outside 1..={MAX_BTF_SIDE}")));
+    }
+    let (mut source, listed) = Source::open(path)?;
+    let mut report = ImageSetReport::default();
+
+    // names → kept entries (light, view)
+    let mut entries: Vec<(Listed, Dir, Dir)> = Vec::new();
+    let mut seen: HashMap<(Key, Key), usize> = HashMap::new();
+    for item in listed {
+        match parse_name(&item.base) {
+            Name::Other => report.ignored.push(item.shown),
+            Name::Exr => {
+                return Err(IoError::Format {
+                    path: Source::err_path(path, &item),
+                    message: "EXR images are not supported (this build reads PNG and JPEG); convert the set to PNG"
+                        .into(),
+                });
+            }
+            Name::Image([tl, pl, tv, pv]) => {
+                if !(0.0..90.0).contains(&tl) || !(0.0..90.0).contains(&tv) {
+                    report.ignored.push(item.shown);
+                    continue;
+                }
+                let (light, view) = (Dir::new(tl, pl), Dir::new(tv, pv));
+                let key = (light.key(), view.key());
+                if seen.contains_key(&key) {
+                    report.duplicated.push(item.shown);
+                    continue;
+                }
+                if entries.len() >= MAX_SET_IMAGES {
+                    return Err(fmt(format!("more than {MAX_SET_IMAGES} images")));
+                }
+                seen.insert(key, entries.len());
+                entries.push((item, light, view));
+            }
+        }
+    }
+    if entries.is_empty() {
+        return Err(fmt(format!(
+            "no image named like 'tl015 pl060 tv030 pv120.jpg' (Bonn) or 'tl015_pl060_tv030_pv120.png' (UTIA); \
+             {} files ignored",
+            report.ignored.len()
+        )));
+    }
+    let (views, view_index) = distinct(entries.iter().map(|e| e.2));
+    let (lights, light_index) = distinct(entries.iter().map(|e| e.1));
+    // (measured view, measured light) → entry
+    let pairs: HashMap<(usize, usize), usize> = entries
+        .iter()
+        .enumerate()
+        .filter_map(|(i, e)| Some(((*view_index.get(&e.2.key())?, *light_index.get(&e.1.key())?), i)))
+        .collect();
+    report.images = entries.len();
+    report.view_dirs = views.len();
+    report.light_dirs = lights.len();
+
+    // plan: the target grid, and the images used directly or blended
+    let both = |g: &AngularGrid| Some((match_grid(g, &views)?, match_grid(g, &lights)?));
+    let target = match grid {
+        Some(g) => g,
+        None => infer_grid(&views, &lights).filter(|g| both(g).is_some()).unwrap_or_else(AngularGrid::paper),
+    };
+    let d = target.directions();
+    let direct = both(&target);
+    let needed: Vec<usize> = if let Some((vm, lm)) = &direct {
+        let mut slots = Vec::with_capacity(d * d);
+        let mut missing = Vec::new();
+        'outer: for &mv in vm {
+            for &ml in lm {
+                match pairs.get(&(mv, ml)) {
+                    Some(&e) => slots.push(e),
+                    None => {
+                        missing.push(combo_name(lights[ml], views[mv]));
+                        if missing.len() >= LISTED_IN_ERRORS {
+                            break 'outer;
+                        }
+                    }
+                }
+            }
+        }
+        if !missing.is_empty() {
+            let (mut mult_v, mut mult_l) = (vec![0u64; views.len()], vec![0u64; lights.len()]);
+            vm.iter().for_each(|&i| mult_v[i] += 1);
+            lm.iter().for_each(|&i| mult_l[i] += 1);
+            let present: u64 = pairs.keys().map(|&(v, l)| mult_v[v] * mult_l[l]).sum();
+            return Err(fmt(format!(
+                "the images lie on the grid {} but {} of its {} (view, light) combinations have no image: {}{}",
+                describe_grid(&target),
+                (d * d) as u64 - present,
+                d * d,
+                missing.join(", "),
+                if (d * d) as u64 - present > missing.len() as u64 { ", …" } else { "" }
+            )));
+        }
+        slots
+    } else {
+        (0..entries.len()).collect()
+    };
+
+    // the shape is checked before any image is decoded when the size is given, else after the first
+    let mut unique: Vec<usize> = needed.clone();
+    unique.sort_unstable();
+    unique.dedup();
+    let check_shape = |sw: u32, sh: u32| -> Result<(), IoError> {
+        checked_size(&target, sw, sh).map_err(|e| {
+            fmt(format!(
+                "a BTF of {sw}x{sh} texels on the grid {} is too large ({e}); choose a smaller size",
+                describe_grid(&target)
+            ))
+        })?;
+        let measured = unique.len() as u64 * sw as u64 * sh as u64;
+        if measured > MAX_BTF_TEXELS {
+            return Err(fmt(format!(
+                "{} images of {sw}x{sh} texels exceed the limit of {MAX_BTF_TEXELS} texels; choose a smaller size",
+                unique.len()
+            )));
+        }
+        Ok(())
+    };
+    if let Some(s) = size {
+        check_shape(s, s)?;
+    }
+
+    // read the images that are used
+    let lut = linear_lut();
+    let total = unique.len() + d * d;
+    let mut slot_of = vec![usize::MAX; entries.len()];
+    let mut store: Vec<u8> = Vec::new();
+    let mut first: Option<(u32, u32, PathBuf)> = None;
+    let (mut sw, mut sh) = (0u32, 0u32);
+    for (k, &e) in unique.iter().enumerate() {
+        let item = &entries[e].0;
+        let at = Source::err_path(path, item);
+        let bytes = source.read(path, item)?;
+        let (w, h, rgb) = decode_rgb(&bytes, &at)?;
+        match &first {
+            None => {
+                (sw, sh) = size.map_or((w, h), |s| (s, s));
+                check_shape(sw, sh)?;
+                store.reserve_exact(unique.len() * sw as usize * sh as usize * 3);
+                first = Some((w, h, at.clone()));
+            }
+            Some((w0, h0, p0)) if (*w0, *h0) != (w, h) => {
+                return Err(IoError::Format {
+                    path: at,
+                    message: format!(
+                        "image is {w}x{h} but {} is {w0}x{h0}; all images of a set must have the same size",
+                        p0.display()
+                    ),
+                });
+            }
+            Some(_) => {}
+        }
+        slot_of[e] = k;
+        store.extend_from_slice(&fit(rgb, w, h, size, &lut));
+        progress(k + 1, total);
+    }
+    let done = unique.len();
+    let n = sw as usize * sh as usize * 3;
+    let image = |e: usize| &store[slot_of[e] * n..(slot_of[e] + 1) * n];
+    let mut btf = Btf::zeroed(target.clone(), sw, sh).map_err(|e| IoError::from(e).in_file(path))?;
+
+    if direct.is_some() {
+        for (idx, &e) in needed.iter().enumerate() {
+            btf.image_mut(idx / d, idx % d).copy_from_slice(image(e));
+            progress(done + idx + 1, total);
+        }
+        report.resampled = false;
+        report.method = format!("direct: the images lie on the grid {}; no resampling", describe_grid(&target));
+        return Ok((btf, report));
+    }
+
+    // resampling
+    let missing_count = views.len() * lights.len() - pairs.len();
+    'm: for (mv, &view) in views.iter().enumerate() {
+        for (ml, &light) in lights.iter().enumerate() {
+            if !pairs.contains_key(&(mv, ml)) {
+                if report.missing.len() >= LISTED_IN_REPORT {
+                    report.missing.push(format!("… and {} more", missing_count - LISTED_IN_REPORT));
+                    break 'm;
+                }
+                report.missing.push(combo_name(light, view));
+            }
+        }
+    }
+    let view_vecs: Vec<[f64; 3]> = views.iter().map(|v| v.vector()).collect();
+    let light_vecs: Vec<[f64; 3]> = lights.iter().map(|v| v.vector()).collect();
+    let view_max = views.iter().map(|v| v.theta).fold(0.0, f32::max);
+    let light_max = lights.iter().map(|v| v.theta).fold(0.0, f32::max);
+    let light_lookups: Vec<[f64; 3]> = (0..d).map(|l| lookup(&target, l, light_max)).collect();
+    let light_nbrs: Vec<Vec<(usize, f32)>> = light_lookups.iter().map(|&t| neighbours(t, &light_vecs)).collect();
+    let mut pair_list: Vec<(usize, usize, usize)> = pairs.iter().map(|(&(v, l), &e)| (v, l, e)).collect();
+    pair_list.sort_unstable();
+    let mut acc = vec![0f32; n];
+    let mut fallbacks = 0usize;
+    for v in 0..d {
+        let vt = lookup(&target, v, view_max);
+        let vn = neighbours(vt, &view_vecs);
+        for (l, ln) in light_nbrs.iter().enumerate() {
+            let mut blend: Vec<(usize, f32)> = Vec::with_capacity(vn.len() * ln.len());
+            for &(mv, wv) in &vn {
+                for &(ml, wl) in ln {
+                    if let Some(&e) = pairs.get(&(mv, ml)) {
+                        blend.push((e, wv * wl));
+                    }
+                }
+            }
+            let mut wsum: f32 = blend.iter().map(|b| b.1).sum();
+            if blend.is_empty() || wsum <= 0.0 {
+                fallbacks += 1;
+                let lt = light_lookups[l];
+                let mut near: Vec<(f64, usize)> = pair_list
+                    .iter()
+                    .map(|&(mv, ml, e)| (angle(vt, view_vecs[mv]).powi(2) + angle(lt, light_vecs[ml]).powi(2), e))
+                    .collect();
+                near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                blend = match near.first() {
+                    Some(&(x, e)) if x < EXACT_RAD * EXACT_RAD => vec![(e, 1.0)],
+                    _ => near.iter().take(NEIGHBOURS).map(|&(x, e)| (e, (1.0 / x) as f32)).collect(),
+                };
+                wsum = blend.iter().map(|b| b.1).sum();
+            }
+            acc.iter_mut().for_each(|a| *a = 0.0);
+            for &(e, w) in &blend {
+                for (a, &c) in acc.iter_mut().zip(image(e)) {
+                    *a += w * lut[c as usize];
+                }
+            }
+            let inv = if wsum > 0.0 { 1.0 / wsum } else { 0.0 };
+            for (o, &a) in btf.image_mut(v, l).iter_mut().zip(&acc) {
+                *o = linear_to_srgb_u8(a * inv);
+            }
+            progress(done + v * d + l + 1, total);
+        }
+    }
+    report.resampled = true;
+    report.method = format!(
+        "resampled onto the grid {} by inverse-distance weighting in linear light: per target (view, light), the \
+         {NEIGHBOURS} nearest measured views × {NEIGHBOURS} nearest measured lights by angle between unit vectors, \
+         weights ∝ 1/d² (exact hits copied); target θ beyond the outermost measured ring ({view_max}° view, \
+         {light_max}° light) clamped to that ring at the same azimuth{}",
+        describe_grid(&target),
+        if fallbacks > 0 {
+            format!(
+                "; {fallbacks} targets without a measured neighbour pair used the {NEIGHBOURS} nearest measured pairs"
+            )
+        } else {
+            String::new()
+        }
+    );
+    Ok((btf, report))
+}
+
+/// Writes every image of `btf` as an RGB PNG into `dir` (created if needed),
+/// each atomically, named in `convention` with the angles rounded to integer
+/// degrees (φ of azimuth `j` is `j · 360 / phi_count`). Bonn names end in
+/// `.png` too, since the files are PNG. Returns the number of files written.
+/// A grid whose angles round to the same integer degree is refused (the
+/// names would collide).
+pub fn export_image_set(btf: &Btf, dir: &Path, convention: Convention) -> Result<usize, IoError> {
+    let werr = |m: String| IoError::Write { path: dir.to_path_buf(), message: m };
+    let g = btf.grid();
+    let theta: Vec<u32> = g.theta_deg().iter().map(|t| t.round() as u32).collect();
+    let phi: Vec<u32> = (0..g.phi_count()).map(|j| g.phi_deg(j).round() as u32 % 360).collect();
+    for (what, list) in [("polar", &theta), ("azimuth", &phi)] {
+        let unique: BTreeSet<u32> = list.iter().copied().collect();
+        if unique.len() != list.len() {
+            return Err(werr(format!(
+                "two {what} angles of the grid round to the same integer degree ({list:?}); the file names would collide"
+            )));
+        }
+    }
+    std::fs::create_dir_all(dir).map_err(|e| werr(e.to_string()))?;
+    let (w, h) = (btf.width(), btf.height());
+    let pc = g.phi_count();
+    let mut count = 0;
+    for v in 0..g.directions() {
+        for l in 0..g.directions() {
+            let name = convention.file_name(theta[l / pc], phi[l % pc], theta[v / pc], phi[v % pc]);
+            let path = dir.join(name);
+            let mut buf = Vec::new();
+            {
+                use image::ImageEncoder;
+                image::codecs::png::PngEncoder::new(&mut buf)
+                    .write_image(btf.image(v, l), w, h, image::ExtendedColorType::Rgb8)
+                    .map_err(|e| IoError::Write { path: path.clone(), message: e.to_string() })?;
+            }
+            write_atomic(&path, &buf)?;
+            count += 1;
+        }
+    }
+    Ok(count)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    fn tmpdir(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("hitex-io-btf-images-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn noise(seed: u32, n: usize) -> Vec<u8> {
+        let mut s = seed.wrapping_mul(2_654_435_761).wrapping_add(12345);
+        (0..n)
+            .map(|_| {
+                s ^= s << 13;
+                s ^= s >> 17;
+                s ^= s << 5;
+                (s >> 24) as u8
+            })
+            .collect()
+    }
+
+    fn small_btf() -> Btf {
+        let grid = AngularGrid::new(vec![0.0, 30.0, 60.0], 4).unwrap();
+        let n = checked_size(&grid, 4, 4).unwrap();
+        Btf::new(grid, 4, 4, noise(1, n)).unwrap()
+    }
+
+    fn png(w: u32, h: u32, rgb: &[u8]) -> Vec<u8> {
+        use image::ImageEncoder;
+        let mut buf = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut buf).write_image(rgb, w, h, image::ExtendedColorType::Rgb8).unwrap();
+        buf
+    }
+
+    fn quiet(_: usize, _: usize) {}
+
+    #[test]
+    fn btf_names_parse_leniently() {
+        assert_eq!(parse_name("tl015 pl060 tv030 pv120.jpg"), Name::Image([15.0, 60.0, 30.0, 120.0]));
+        assert_eq!(parse_name("TL000_PL000_TV075_PV345.PNG"), Name::Image([0.0, 0.0, 75.0, 345.0]));
+        assert_eq!(parse_name("wool_tv030_pv120_tl015_pl060.jpeg"), Name::Image([15.0, 60.0, 30.0, 120.0]));
+        assert_eq!(parse_name("tl15.5 pl0 tv0 pv0.png"), Name::Image([15.5, 0.0, 0.0, 0.0]));
+        assert_eq!(parse_name("tl000_pl000_tv000_pv000.exr"), Name::Exr);
+        for bad in [
+            "readme.txt",
+            "tl000 pl000 tv000.png",
+            "tl000 pl000 tv000 pv000.txt",
+            "._tl000 pl000 tv000 pv000.jpg",
+            "tl000 tl010 pl000 tv000 pv000.png",
+            "tl000 pl000 tv000 pv000",
+        ] {
+            assert_eq!(parse_name(bad), Name::Other, "{bad}");
+        }
+    }
+
+    #[test]
+    fn btf_image_set_round_trips_in_both_conventions() {
+        let btf = small_btf();
+        for (conv, sample) in
+            [(Convention::Ubo, "tl030 pl090 tv060 pv270.png"), (Convention::Utia, "tl030_pl090_tv060_pv270.png")]
+        {
+            let d = tmpdir(&format!("rt-{conv:?}"));
+            assert_eq!(export_image_set(&btf, &d.join("set"), conv).unwrap(), 144);
+            assert!(d.join("set").join(sample).is_file());
+            let calls = std::cell::Cell::new(0);
+            let (back, rep) = import_image_set(&d.join("set"), None, None, &|_, t| {
+                calls.set(calls.get() + 1);
+                assert_eq!(t, 288);
+            })
+            .unwrap();
+            assert_eq!(calls.get(), 288);
+            assert!(!rep.resampled, "{}", rep.method);
+            assert!(rep.method.starts_with("direct"), "{}", rep.method);
+            assert_eq!((rep.images, rep.view_dirs, rep.light_dirs), (144, 12, 12));
+            assert!(rep.missing.is_empty() && rep.duplicated.is_empty() && rep.ignored.is_empty());
+            assert_eq!(back, btf);
+            // the same grid asked for explicitly
+            let (again, _) = import_image_set(&d.join("set"), Some(btf.grid().clone()), None, &quiet).unwrap();
+            assert_eq!(again, btf);
+        }
+    }
+
+    #[test]
+    fn btf_image_set_from_a_zip_with_folders() {
+        let btf = small_btf();
+        let d = tmpdir("zip");
+        export_image_set(&btf, &d.join("set"), Convention::Ubo).unwrap();
+        let zp = d.join("set.zip");
+        let mut z = zip::ZipWriter::new(std::fs::File::create(&zp).unwrap());
+        let opts = zip::write::SimpleFileOptions::default();
+        z.add_directory("wool/", opts).unwrap();
+        let mut names: Vec<_> = std::fs::read_dir(d.join("set")).unwrap().map(|e| e.unwrap().file_name()).collect();
+        names.sort();
+        for (i, name) in names.iter().enumerate() {
+            let bytes = std::fs::read(d.join("set").join(name)).unwrap();
+            let mut entry = format!("wool/rectified/{}", name.to_string_lossy());
+            if i % 2 == 0 {
+                entry = entry.to_uppercase();
+            }
+            z.start_file(entry, opts).unwrap();
+            z.write_all(&bytes).unwrap();
+        }
+        z.start_file("wool/readme.txt", opts).unwrap();
+        z.write_all(b"Bonn BTF").unwrap();
+        z.start_file("__MACOSX/wool/._tl000 pl000 tv000 pv000.png", opts).unwrap();
+        z.write_all(b"resource fork").unwrap();
+        z.finish().unwrap();
+        let (back, rep) = import_image_set(&zp, None, None, &quiet).unwrap();
+        assert_eq!(back, btf);
+        assert_eq!(rep.ignored.len(), 2, "{:?}", rep.ignored);
+        assert!(rep.ignored.iter().any(|n| n.ends_with("readme.txt")));
+        assert!(!rep.resampled);
+    }
+
+    /// Seven directions on three rings, all 49 (view, light) images.
+    fn irregular_set(dir: &Path) -> Vec<(Dir, Dir, Vec<u8>)> {
+        let dirs = [(0, 0), (30, 0), (30, 120), (30, 240), (60, 60), (60, 180), (60, 300)];
+        std::fs::create_dir_all(dir).unwrap();
+        let mut out = Vec::new();
+        for (i, &(tv, pv)) in dirs.iter().enumerate() {
+            for (j, &(tl, pl)) in dirs.iter().enumerate() {
+                let rgb = noise((i * 7 + j) as u32 + 100, 4 * 4 * 3);
+                let name = Convention::Ubo.file_name(tl, pl, tv, pv).replace(".png", ".jpg");
+                // JPEG names with PNG content: the content decides
+                std::fs::write(dir.join(name), png(4, 4, &rgb)).unwrap();
+                out.push((Dir::new(tv as f32, pv as f32), Dir::new(tl as f32, pl as f32), rgb));
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn btf_irregular_sets_are_resampled() {
+        let d = tmpdir("irregular");
+        let set = irregular_set(&d.join("set"));
+        let (btf, rep) = import_image_set(&d.join("set"), None, None, &quiet).unwrap();
+        assert!(rep.resampled);
+        assert!(rep.method.contains("inverse-distance") && rep.method.contains("clamped"), "{}", rep.method);
+        assert_eq!((rep.images, rep.view_dirs, rep.light_dirs), (49, 7, 7));
+        assert!(rep.missing.is_empty());
+        assert_eq!(btf.grid(), &AngularGrid::paper());
+        let g = btf.grid();
+        // measured directions on the paper grid: (0, 0) → (0, 0); (30, 0) → (3, 0); (60, 180) → (6, 8)
+        for ((tv, pv), (tl, pl)) in [((0, 0), (0, 0)), ((3, 0), (6, 8)), ((6, 8), (3, 0)), ((0, 5), (6, 8))] {
+            let (v, l) = (g.direction(tv, pv), g.direction(tl, pl));
+            let vd = Dir::new(g.theta_deg()[tv], if tv == 0 { 0.0 } else { g.phi_deg(pv) });
+            let ld = Dir::new(g.theta_deg()[tl], if tl == 0 { 0.0 } else { g.phi_deg(pl) });
+            let (_, _, want) = set.iter().find(|(a, b, _)| a.key() == vd.key() && b.key() == ld.key()).unwrap();
+            for (a, b) in btf.image(v, l).iter().zip(want) {
+                assert!((*a as i32 - *b as i32).abs() <= 1, "{a} vs {b}");
+            }
+        }
+        // a grazing target (θ = 70°) blends the 60° ring at its azimuth: (60, 180) is exact there
+        let (v, l) = (g.direction(7, 8), g.direction(0, 0));
+        let (_, _, want) = set.iter().find(|(a, b, _)| a.key() == (6000, 18000) && b.key() == (0, 0)).unwrap();
+        assert_eq!(btf.image(v, l), &want[..]);
+        // size: a 2x2 box filter of every image
+        let (small, _) = import_image_set(&d.join("set"), None, Some(2), &quiet).unwrap();
+        assert_eq!((small.width(), small.height()), (2, 2));
+        let lut = linear_lut();
+        let want = fit(set[0].2.clone(), 4, 4, Some(2), &lut);
+        let mean = (lut[set[0].2[0] as usize]
+            + lut[set[0].2[3] as usize]
+            + lut[set[0].2[12] as usize]
+            + lut[set[0].2[15] as usize])
+            / 4.0;
+        assert_eq!(want[0], linear_to_srgb_u8(mean));
+        assert!(small.image(0, 0).iter().zip(&want).all(|(a, b)| (*a as i32 - *b as i32).abs() <= 1));
+    }
+
+    #[test]
+    fn btf_image_set_sparse_and_duplicated() {
+        let d = tmpdir("sparse");
+        let set = irregular_set(&d.join("set"));
+        // drop one combination and duplicate another under the other convention
+        std::fs::remove_file(d.join("set").join("tl030 pl120 tv060 pv300.jpg")).unwrap();
+        std::fs::write(d.join("set").join("tl000_pl000_tv000_pv000.png"), png(4, 4, &set[1].2)).unwrap();
+        std::fs::write(d.join("set").join("notes.md"), b"x").unwrap();
+        let (btf, rep) = import_image_set(&d.join("set"), None, None, &quiet).unwrap();
+        assert_eq!(rep.missing, vec!["tl030 pl120 tv060 pv300".to_string()]);
+        assert_eq!(rep.duplicated, vec!["tl000_pl000_tv000_pv000.png".to_string()]);
+        assert_eq!(rep.ignored, vec!["notes.md".to_string()]);
+        assert_eq!(rep.images, 48);
+        // the first file is kept
+        assert_eq!(btf.image(0, 0), &set[0].2[..]);
+    }
+
+    #[test]
+    fn btf_image_set_errors_name_the_file() {
+        let btf = small_btf();
+        let d = tmpdir("errors");
+        let set = d.join("set");
+        export_image_set(&btf, &set, Convention::Utia).unwrap();
+        // missing image of a regular set
+        std::fs::remove_file(set.join("tl030_pl090_tv060_pv270.png")).unwrap();
+        let e = import_image_set(&set, None, None, &quiet).unwrap_err().to_string();
+        assert!(e.contains("tl030 pl090 tv060 pv270") && e.contains("1 of its 144"), "{e}");
+        export_image_set(&btf, &set, Convention::Utia).unwrap();
+        // corrupt image
+        let f = set.join("tl000_pl000_tv030_pv180.png");
+        std::fs::write(&f, b"\x89PNG\r\n\x1a\n garbage").unwrap();
+        let e = import_image_set(&set, None, None, &quiet).unwrap_err().to_string();
+        assert!(e.contains("tl000_pl000_tv030_pv180.png"), "{e}");
+        // a different size
+        std::fs::write(&f, png(2, 2, &[9; 12])).unwrap();
+        let e = import_image_set(&set, None, None, &quiet).unwrap_err().to_string();
+        assert!(e.contains("tl000_pl000_tv030_pv180.png") && e.contains("same size"), "{e}");
+        std::fs::remove_file(&f).unwrap();
+        // EXR
+        std::fs::write(set.join("tl000_pl000_tv030_pv180.exr"), b"v/1\x01").unwrap();
+        let e = import_image_set(&set, None, None, &quiet).unwrap_err().to_string();
+        assert!(e.contains(".exr") && e.contains("convert"), "{e}");
+        // nothing usable; not a folder or zip; missing path; absurd size
+        let empty = d.join("empty");
+        std::fs::create_dir_all(&empty).unwrap();
+        std::fs::write(empty.join("a.txt"), b"x").unwrap();
+        assert!(import_image_set(&empty, None, None, &quiet).unwrap_err().to_string().contains("1 files ignored"));
+        let e = import_image_set(&empty.join("a.txt"), None, None, &quiet).unwrap_err().to_string();
+        assert!(e.contains("a.txt") && e.contains("zip"), "{e}");
+        assert!(import_image_set(&d.join("nope"), None, None, &quiet).unwrap_err().to_string().contains("nope"));
+        assert!(import_image_set(&empty, None, Some(0), &quiet).is_err());
+        // a BTF too large for the target grid is refused before the images are read
+        let set2 = d.join("set2");
+        irregular_set(&set2);
+        let e = import_image_set(&set2, None, Some(1024), &quiet).unwrap_err().to_string();
+        assert!(e.contains("too large"), "{e}");
+    }
+
+    #[test]
+    fn btf_export_refuses_colliding_names() {
+        let grid = AngularGrid::new(vec![10.0, 10.4], 2).unwrap();
+        let btf = Btf::zeroed(grid, 1, 1).unwrap();
+        let d = tmpdir("collide");
+        assert!(export_image_set(&btf, &d.join("x"), Convention::Ubo).unwrap_err().to_string().contains("collide"));
+    }
+}
