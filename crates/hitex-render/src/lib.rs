@@ -8,6 +8,7 @@
 //! Both consume the same [`prepare::PreparedScene`]: world-space vertices,
 //! `#[repr(C)]` uniform blocks and the texture pyramids, byte for byte.
 
+pub mod btf;
 pub mod compare;
 pub mod cpu;
 pub mod gpu;

@@ -5,6 +5,7 @@
 //! twin in `shaders/`) shades a whole quad so that screen-space derivatives
 //! are lane differences, as on a GPU.
 
+pub mod btf;
 pub mod nurbs;
 pub mod raster;
 pub mod textured;
@@ -83,6 +84,32 @@ impl CpuRenderer {
         ];
         let mut target = raster::Target::new(width, height, clear);
         Self::raster_nurbs(&mut target, scene, camera, width, height);
+        Ok(Frame { width, height, rgba: target.into_rgba() })
+    }
+}
+
+impl CpuRenderer {
+    /// Renders a BTF surface seen by `camera`, lit by a point light at
+    /// `light`, with `cpu/btf.rs`.
+    pub fn render_btf(
+        &self,
+        scene: &crate::btf::PreparedBtf,
+        camera: &Camera,
+        light: glam::Vec3,
+        width: u32,
+        height: u32,
+    ) -> Result<Frame, RenderError> {
+        check_size(width, height)?;
+        let frame = scene.frame(camera, light, width, height);
+        let e = hitex_core::texture::linear_to_srgb_u8;
+        let bg = scene.background;
+        let mut target = raster::Target::new(width, height, [e(bg.x), e(bg.y), e(bg.z), 255]);
+        let program = btf::BtfProgram::new(scene, &frame);
+        let varyings: Vec<[f32; btf::VARYINGS]> = scene.vertices.iter().map(btf::varyings).collect();
+        let positions: Vec<glam::Vec3> = scene.vertices.iter().map(|v| glam::Vec3::from_array(v.position)).collect();
+        let draws = [crate::prepare::Draw { first_index: 0, index_count: scene.indices.len() as u32, material: 0 }];
+        let view_proj = glam::Mat4::from_cols_array_2d(&frame.view_proj);
+        raster::rasterize(&mut target, view_proj, &positions, &varyings, &scene.indices, &draws, &program);
         Ok(Frame { width, height, rgba: target.into_rgba() })
     }
 }

@@ -58,7 +58,9 @@ impl GpuContext {
             .find(|a| backends.contains(wgpu::Backends::from(a.get_info().backend)))
             .ok_or(GpuError::NoAdapter)?;
         let info = adapter.get_info();
-        let wanted = wgpu::Features::TEXTURE_COMPRESSION_BC | wgpu::Features::FLOAT32_FILTERABLE;
+        let wanted = wgpu::Features::TEXTURE_COMPRESSION_BC
+            | wgpu::Features::TEXTURE_COMPRESSION_BC_SLICED_3D
+            | wgpu::Features::FLOAT32_FILTERABLE;
         let desc = wgpu::DeviceDescriptor {
             label: Some("hitex"),
             required_features: adapter.features() & wanted,
@@ -103,8 +105,9 @@ pub fn adapters_report() -> String {
         let _ = writeln!(s, "  driver: {} {}", info.driver, info.driver_info);
         let _ = writeln!(
             s,
-            "  features: TEXTURE_COMPRESSION_BC {}, FLOAT32_FILTERABLE {}",
+            "  features: TEXTURE_COMPRESSION_BC {} (3-D {}), FLOAT32_FILTERABLE {}",
             f.contains(wgpu::Features::TEXTURE_COMPRESSION_BC),
+            f.contains(wgpu::Features::TEXTURE_COMPRESSION_BC_SLICED_3D),
             f.contains(wgpu::Features::FLOAT32_FILTERABLE)
         );
         let _ = writeln!(

@@ -1,8 +1,11 @@
 //! The wgpu backend: headless render to an offscreen target and readback.
 //! Runs `shaders/textured.wgsl`, the twin of `cpu/textured.rs`.
 
+mod btf;
 pub mod device;
 mod nurbs;
+
+pub use btf::layout_source;
 
 pub use device::{GpuContext, adapters_report};
 
@@ -79,6 +82,7 @@ pub struct GpuRenderer {
     uploaded: Option<Uploaded>,
     target: Option<TargetSet>,
     nurbs: Option<nurbs::NurbsGpu>,
+    btf: Option<btf::BtfGpu>,
 }
 
 impl GpuRenderer {
@@ -201,6 +205,7 @@ impl GpuRenderer {
             uploaded: None,
             target: None,
             nurbs: None,
+            btf: None,
         })
     }
 

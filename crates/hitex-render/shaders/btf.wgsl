@@ -1,0 +1,279 @@
+// BTF fragment program. Twin of `src/cpu/btf.rs` (and of
+// `hitex_core::btf::{frames, grid, layout}`): same inputs, same steps, same order.
+//
+// The host prepends the layout's constants (FILTERED, TILE_X, TILE_Y,
+// DEPTH_AXIS, DEPTH_REPEAT) and keeps the `//#if D3` or the `//#else`
+// branch: the codebook is a 2-D or a 3-D texture.
+
+struct Frame {
+    view_proj: mat4x4<f32>,
+    camera: vec4<f32>,
+    light: vec4<f32>,       // xyz position, w exposure
+    background: vec4<f32>,
+    tex_size: vec4<f32>,    // codebook width, height, layers
+    sizes: vec4<u32>,       // index width, height, θ count, φ count
+    tile: vec4<u32>,        // tile width, height, tiles per row
+    strides: array<vec4<u32>, 2>,
+    theta: array<vec4<f32>, 16>, // polar angles in degrees
+}
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var index_map: texture_2d<u32>;
+//#if D3
+@group(0) @binding(2) var codebook: texture_3d<f32>;
+//#else
+@group(0) @binding(2) var codebook: texture_2d<f32>;
+//#endif
+@group(0) @binding(3) var filt: sampler;
+
+struct VsIn {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) tangent_u: vec3<f32>,
+    @location(3) tangent_v: vec3<f32>,
+    @location(4) uv: vec2<f32>,
+}
+
+struct VsOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) tangent_u: vec3<f32>,
+    @location(3) tangent_v: vec3<f32>,
+    @location(4) uv: vec2<f32>,
+}
+
+@vertex
+fn vs_main(v: VsIn) -> VsOut {
+    var o: VsOut;
+    o.clip = frame.view_proj * vec4<f32>(v.position, 1.0);
+    o.world = v.position;
+    o.normal = v.normal;
+    o.tangent_u = v.tangent_u;
+    o.tangent_v = v.tangent_v;
+    o.uv = v.uv;
+    return o;
+}
+
+const PI: f32 = 3.14159265358979;
+const TAU: f32 = 6.28318530717959;
+
+fn normalize_or(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
+    let l = length(v);
+    if (l > 0.0) {
+        return v / l;
+    }
+    return fallback;
+}
+
+// ---- per-pixel angles (frames.rs) ----
+
+fn angles(p: vec3<f32>, n: vec3<f32>, u: vec3<f32>, v: vec3<f32>, pc: vec3<f32>) -> vec2<f32> {
+    let c = pc - p;
+    let len = length(c);
+    if (!(len > 0.0)) {
+        return vec2<f32>(0.0, 0.0);
+    }
+    let c1 = c / len;
+    // θ = acos(C′·N)
+    let s = clamp(dot(c1, n), -1.0, 1.0);
+    let theta = acos(s);
+    // R = N × C′, φ = acos(U·R′) − π/2
+    let r = cross(n, c1);
+    let rl = length(r);
+    if (!(rl > 1e-7)) {
+        return vec2<f32>(theta, 0.0);
+    }
+    let t = clamp(dot(u, r / rl), -1.0, 1.0);
+    var phi = acos(t) - PI * 0.5;
+    // correction with V: sense of rotation, then the far half circle
+    if (dot(cross(n, u), v) < 0.0) {
+        phi = -phi;
+    }
+    if (dot(c1, u) < 0.0) {
+        phi = PI - phi;
+    }
+    return vec2<f32>(theta, phi - TAU * floor(phi / TAU));
+}
+
+// ---- neighbouring samples (grid.rs) ----
+
+struct Lerp {
+    i0: u32,
+    i1: u32,
+    t: f32,
+    coord: f32,
+}
+
+fn theta_at(i: u32) -> f32 {
+    return frame.theta[i / 4u][i % 4u];
+}
+
+fn lerp_theta(theta: f32) -> Lerp {
+    let deg = degrees(theta);
+    let n = frame.sizes.z;
+    if (n == 1u || deg <= theta_at(0u)) {
+        return Lerp(0u, 0u, 0.0, 0.0);
+    }
+    if (deg >= theta_at(n - 1u)) {
+        return Lerp(n - 1u, n - 1u, 0.0, f32(n - 1u));
+    }
+    // first ring above deg
+    var i1 = 1u;
+    for (var i = 1u; i < n - 1u; i = i + 1u) {
+        if (theta_at(i) <= deg) {
+            i1 = i + 1u;
+        }
+    }
+    let i0 = i1 - 1u;
+    let t = clamp((deg - theta_at(i0)) / (theta_at(i1) - theta_at(i0)), 0.0, 1.0);
+    return Lerp(i0, i1, t, f32(i0) + t);
+}
+
+fn lerp_phi(phi: f32) -> Lerp {
+    let nu = frame.sizes.w;
+    let n = f32(nu);
+    var x = phi / TAU * n;
+    x = x - n * floor(x / n);
+    if (x >= n) {
+        x = 0.0;
+    }
+    let i0 = min(u32(floor(x)), nu - 1u);
+    let t = clamp(x - f32(i0), 0.0, 1.0);
+    return Lerp(i0, (i0 + 1u) % nu, t, x);
+}
+
+// ---- codebook reads through the layout (layout.rs, Codebook::corner) ----
+
+fn stride(a: u32) -> u32 {
+    return frame.strides[a / 4u][a % 4u];
+}
+
+fn read_texel(x: f32, y: f32) -> vec3<f32> {
+//#if D3
+    return vec3<f32>(0.0);
+//#else
+    return textureLoad(codebook, vec2<i32>(i32(x), i32(y)), 0).rgb;
+//#endif
+}
+
+fn read_filtered(x: f32, y: f32, z: f32) -> vec3<f32> {
+    let size = frame.tex_size;
+//#if D3
+    return textureSampleLevel(codebook, filt, vec3<f32>(x / size.x, y / size.y, z / size.z), 0.0).rgb;
+//#else
+    return textureSampleLevel(codebook, filt, vec2<f32>(x / size.x, y / size.y), 0.0).rgb;
+//#endif
+}
+
+fn fetch_corner(su: u32, sv: u32, lerps: array<Lerp, 4>) -> vec3<f32> {
+    var l = lerps;
+    // the angular axes the shader walks, each with two neighbours
+    let nwalk = 4u - countOneBits(FILTERED);
+    var acc = vec3<f32>(0.0);
+    for (var combo = 0u; combo < (1u << nwalk); combo = combo + 1u) {
+        // discrete index per axis and the combination's weight
+        var idx = array<u32, 6>(su, sv, 0u, 0u, 0u, 0u);
+        var crd = array<f32, 6>(f32(su), f32(sv), l[0].coord, l[1].coord, l[2].coord, l[3].coord);
+        var w = 1.0;
+        var bit = 0u;
+        for (var a = 2u; a < 6u; a = a + 1u) {
+            if ((FILTERED & (1u << a)) == 0u) {
+                let ax = l[a - 2u];
+                if ((combo & (1u << bit)) != 0u) {
+                    idx[a] = ax.i1;
+                    w = w * ax.t;
+                } else {
+                    idx[a] = ax.i0;
+                    w = w * (1.0 - ax.t);
+                }
+                crd[a] = f32(idx[a]);
+                bit = bit + 1u;
+            }
+        }
+        // tile origin
+        var k = 0u;
+        for (var a = 0u; a < 6u; a = a + 1u) {
+            k = k + idx[a] * stride(a);
+        }
+        let ox = f32((k % frame.tile.z) * frame.tile.x);
+        let oy = f32((k / frame.tile.z) * frame.tile.y);
+        let x = ox + crd[TILE_X] + 0.5;
+        let y = oy + crd[TILE_Y] + 0.5;
+        var value: vec3<f32>;
+        if (FILTERED == 0u) {
+            value = read_texel(x, y);
+        } else if (DEPTH_AXIS == 6u) {
+            value = read_filtered(x, y, 0.5);
+        } else {
+            value = read_filtered(x, y, crd[min(DEPTH_AXIS, 5u)] + 0.5);
+        }
+        acc = acc + value * w;
+    }
+    return acc;
+}
+
+// ---- index map (cpu/btf.rs, index_taps) ----
+
+struct Taps {
+    i0: u32,
+    i1: u32,
+    f: f32,
+}
+
+fn index_taps(t_in: f32, size: u32) -> Taps {
+    let t = clamp(t_in, -1.0e6, 1.0e6);
+    let x = t * f32(size) - 0.5;
+    let f0 = floor(x);
+    let n = i32(size);
+    let i0 = i32(f0);
+    let a = ((i0 % n) + n) % n;
+    let b = (((i0 + 1) % n) + n) % n;
+    return Taps(u32(a), u32(b), x - f0);
+}
+
+// ---- output ----
+
+fn linear_to_srgb(l: f32) -> f32 {
+    let c = clamp(l, 0.0, 1.0);
+    if c <= 0.0031308 {
+        return c * 12.92;
+    }
+    return 1.055 * pow(c, 1.0 / 2.4) - 0.055;
+}
+
+@fragment
+fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
+    let p = in.world;
+    let cam = frame.camera.xyz;
+    let light = frame.light.xyz;
+    // per-pixel frame; the normal faces the viewer
+    var n = normalize_or(in.normal, vec3<f32>(0.0, 0.0, 1.0));
+    let u = normalize_or(in.tangent_u, vec3<f32>(1.0, 0.0, 0.0));
+    let v = normalize_or(in.tangent_v, vec3<f32>(0.0, 1.0, 0.0));
+    if (dot(n, cam - p) < 0.0) {
+        n = -n;
+    }
+    // light below the surface: no light
+    if (dot(n, light - p) <= 0.0) {
+        return vec4<f32>(0.0, 0.0, 0.0, 1.0);
+    }
+    // view and light angles, their neighbouring samples
+    let ac = angles(p, n, u, v, cam);
+    let al = angles(p, n, u, v, light);
+    let l = array<Lerp, 4>(lerp_theta(ac.x), lerp_phi(ac.y), lerp_theta(al.x), lerp_phi(al.y));
+    // index map: four texels around T, bilinear weights (4 index reads)
+    let tx = index_taps(in.uv.x, frame.sizes.x);
+    let ty = index_taps(in.uv.y, frame.sizes.y);
+    let e00 = textureLoad(index_map, vec2<u32>(tx.i0, ty.i0), 0).xy;
+    let e10 = textureLoad(index_map, vec2<u32>(tx.i1, ty.i0), 0).xy;
+    let e01 = textureLoad(index_map, vec2<u32>(tx.i0, ty.i1), 0).xy;
+    let e11 = textureLoad(index_map, vec2<u32>(tx.i1, ty.i1), 0).xy;
+    // hexa-linear over the angles through the layout's reads
+    var acc = fetch_corner(e00.x, e00.y, l) * ((1.0 - tx.f) * (1.0 - ty.f));
+    acc = acc + fetch_corner(e10.x, e10.y, l) * (tx.f * (1.0 - ty.f));
+    acc = acc + fetch_corner(e01.x, e01.y, l) * ((1.0 - tx.f) * ty.f);
+    acc = acc + fetch_corner(e11.x, e11.y, l) * (tx.f * ty.f);
+    let c = acc * frame.light.w;
+    return vec4<f32>(linear_to_srgb(c.x), linear_to_srgb(c.y), linear_to_srgb(c.z), 1.0);
+}

@@ -1,0 +1,334 @@
+//! The BTF pipeline: the index map and one codebook layout as real GPU
+//! textures (2-D tiles or 3-D layers, RGBA8 sRGB or BC1 sRGB), sampled with
+//! the hardware filter by `shaders/btf.wgsl`.
+
+use super::{GpuError, GpuRenderer, trusted_module};
+use crate::btf::{BtfFrame, BtfVertex, PreparedBtf};
+use crate::{Frame, RenderError};
+use hitex_core::btf::Layout;
+use hitex_core::btf::layout::Axis;
+use hitex_core::scene::Camera;
+use wgpu::util::DeviceExt;
+
+/// The BTF shader source, before the layout's constants are prepended.
+pub const BTF_WGSL: &str = include_str!("../../shaders/btf.wgsl");
+
+/// The WGSL of `layout`: its constants prepended, the 2-D or 3-D branch kept.
+pub fn layout_source(layout: Layout) -> String {
+    let spec = layout.spec();
+    let d3 = spec.depth.is_some();
+    let mut out = format!(
+        "const FILTERED: u32 = {}u;\nconst TILE_X: u32 = {}u;\nconst TILE_Y: u32 = {}u;\nconst DEPTH_AXIS: u32 = {}u;\n",
+        layout.filtered_mask(),
+        spec.tile_x as u32,
+        spec.tile_y as u32,
+        spec.depth.map_or(6, |a| a as u32)
+    );
+    // keep one branch of each `//#if D3 … //#else … //#endif`
+    let mut keep = true;
+    for line in BTF_WGSL.lines() {
+        match line.trim() {
+            "//#if D3" => keep = d3,
+            "//#else" => keep = !d3,
+            "//#endif" => keep = true,
+            _ if keep => {
+                out.push_str(line);
+                out.push('\n');
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
+struct Uploaded {
+    id: u64,
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    group: wgpu::BindGroup,
+    count: u32,
+}
+
+pub(crate) struct BtfGpu {
+    layout: Layout,
+    pipeline: wgpu::RenderPipeline,
+    group_layout: wgpu::BindGroupLayout,
+    frame: wgpu::Buffer,
+    uploaded: Option<Uploaded>,
+}
+
+impl BtfGpu {
+    fn new(device: &wgpu::Device, layout: Layout) -> Result<Self, GpuError> {
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let source = layout_source(layout);
+        // SAFETY: btf.wgsl reads index texels at coordinates wrapped into the
+        // index map, codebook texels inside tiles whose indices come from the
+        // validated index map and from angular neighbours clamped or wrapped
+        // into the grid, and local arrays with constant-bounded loops.
+        let module = unsafe { trusted_module(device, "btf.wgsl", &source) };
+        let view_dimension =
+            if layout.is_3d() { wgpu::TextureViewDimension::D3 } else { wgpu::TextureViewDimension::D2 };
+        let group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("btf"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Uint,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 3,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
+        });
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("btf"),
+            bind_group_layouts: &[Some(&group_layout)],
+            immediate_size: 0,
+        });
+        let attributes =
+            wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3, 4 => Float32x2];
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("btf"),
+            layout: Some(&pl),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<BtfVertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &attributes,
+                })],
+            },
+            primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: wgpu::TextureFormat::Rgba8Unorm,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(GpuError::Device(format!("BTF pipeline ({}) creation failed: {e}", layout.label())));
+        }
+        let frame = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("btf frame"),
+            size: std::mem::size_of::<BtfFrame>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Ok(Self { layout, pipeline, group_layout, frame, uploaded: None })
+    }
+}
+
+fn codebook_texture(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    scene: &PreparedBtf,
+) -> Result<wgpu::Texture, GpuError> {
+    let cb = &scene.codebook;
+    let d3 = cb.layout.is_3d();
+    let limits = device.limits();
+    let max = if d3 { limits.max_texture_dimension_3d } else { limits.max_texture_dimension_2d };
+    if cb.width > max || cb.height > max || cb.depth > max {
+        return Err(GpuError::Render(format!(
+            "codebook layout {} needs {}x{}x{} texels; the adapter allows {max} per side",
+            cb.layout.label(),
+            cb.width,
+            cb.height,
+            cb.depth
+        )));
+    }
+    let (format, bytes, row_bytes, rows): (_, &[u8], u32, u32) = match &scene.bc1 {
+        Some(blocks) => {
+            let f = device.features();
+            let need = if d3 {
+                wgpu::Features::TEXTURE_COMPRESSION_BC | wgpu::Features::TEXTURE_COMPRESSION_BC_SLICED_3D
+            } else {
+                wgpu::Features::TEXTURE_COMPRESSION_BC
+            };
+            if !f.contains(need) {
+                return Err(GpuError::Render(format!(
+                    "the adapter cannot sample BC1 {} textures",
+                    if d3 { "3-D" } else { "2-D" }
+                )));
+            }
+            (wgpu::TextureFormat::Bc1RgbaUnormSrgb, blocks, cb.width / 4 * 8, cb.height / 4)
+        }
+        None => (wgpu::TextureFormat::Rgba8UnormSrgb, &cb.texels, cb.width * 4, cb.height),
+    };
+    let size = wgpu::Extent3d { width: cb.width, height: cb.height, depth_or_array_layers: cb.depth };
+    let tex = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("btf codebook"),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: if d3 { wgpu::TextureDimension::D3 } else { wgpu::TextureDimension::D2 },
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    queue.write_texture(
+        wgpu::TexelCopyTextureInfo {
+            texture: &tex,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        bytes,
+        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row_bytes), rows_per_image: Some(rows) },
+        size,
+    );
+    Ok(tex)
+}
+
+impl GpuRenderer {
+    fn prepare_btf(&mut self, scene: &PreparedBtf, frame: &BtfFrame) -> Result<(), RenderError> {
+        let layout = scene.layout();
+        if self.btf.as_ref().is_none_or(|b| b.layout != layout) {
+            self.btf = Some(BtfGpu::new(&self.ctx.device, layout)?);
+        }
+        let device = &self.ctx.device;
+        let queue = &self.ctx.queue;
+        let Some(bg) = self.btf.as_mut() else {
+            return Err(RenderError::Gpu(GpuError::Render("BTF pipeline missing".into())));
+        };
+        if bg.uploaded.as_ref().is_none_or(|u| u.id != scene.id()) {
+            let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+            let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+            let codebook = codebook_texture(device, queue, scene)?;
+            let idx = &scene.index;
+            let index_tex = device.create_texture_with_data(
+                queue,
+                &wgpu::TextureDescriptor {
+                    label: Some("btf index"),
+                    size: wgpu::Extent3d { width: idx.width, height: idx.height, depth_or_array_layers: 1 },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: wgpu::TextureFormat::Rg16Uint,
+                    usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                    view_formats: &[],
+                },
+                wgpu::util::TextureDataOrder::LayerMajor,
+                bytemuck::cast_slice(&idx.entries),
+            );
+            let repeat_depth = layout.spec().depth.is_some_and(|a| matches!(a, Axis::PhiC | Axis::PhiL));
+            let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+                label: Some("btf codebook"),
+                address_mode_u: wgpu::AddressMode::ClampToEdge,
+                address_mode_v: wgpu::AddressMode::ClampToEdge,
+                address_mode_w: if repeat_depth { wgpu::AddressMode::Repeat } else { wgpu::AddressMode::ClampToEdge },
+                mag_filter: wgpu::FilterMode::Linear,
+                min_filter: wgpu::FilterMode::Linear,
+                mipmap_filter: wgpu::MipmapFilterMode::Nearest,
+                ..Default::default()
+            });
+            let cb_view = codebook.create_view(&Default::default());
+            let idx_view = index_tex.create_view(&Default::default());
+            let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("btf"),
+                layout: &bg.group_layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: bg.frame.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&idx_view) },
+                    wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&cb_view) },
+                    wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Sampler(&sampler) },
+                ],
+            });
+            let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("btf vertices"),
+                contents: bytemuck::cast_slice(&scene.vertices),
+                usage: wgpu::BufferUsages::VERTEX,
+            });
+            let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("btf indices"),
+                contents: bytemuck::cast_slice(&scene.indices),
+                usage: wgpu::BufferUsages::INDEX,
+            });
+            if let Some(e) = pollster::block_on(oom.pop()) {
+                return Err(GpuError::Render(format!("BTF upload: {e}")).into());
+            }
+            if let Some(e) = pollster::block_on(scope.pop()) {
+                return Err(GpuError::Render(format!("BTF upload: {e}")).into());
+            }
+            bg.uploaded =
+                Some(Uploaded { id: scene.id(), vertices, indices, group, count: scene.indices.len() as u32 });
+        }
+        queue.write_buffer(&bg.frame, 0, bytemuck::bytes_of(frame));
+        Ok(())
+    }
+
+    /// Renders a BTF surface seen by `camera`, lit by a point light at
+    /// `light`, with `btf.wgsl`, and reads it back.
+    pub fn render_btf(
+        &mut self,
+        scene: &PreparedBtf,
+        camera: &Camera,
+        light: glam::Vec3,
+        width: u32,
+        height: u32,
+    ) -> Result<Frame, RenderError> {
+        self.check_output(width, height)?;
+        let frame = scene.frame(camera, light, width, height);
+        self.prepare_btf(scene, &frame)?;
+        self.ensure_target(width, height);
+        let e = hitex_core::texture::linear_to_srgb_u8;
+        let b = scene.background;
+        let clear = [e(b.x), e(b.y), e(b.z), 255];
+        self.pass_and_read(width, height, clear, |pass| {
+            if let Some(bg) = self.btf.as_ref()
+                && let Some(up) = bg.uploaded.as_ref()
+            {
+                pass.set_pipeline(&bg.pipeline);
+                pass.set_bind_group(0, &up.group, &[]);
+                pass.set_vertex_buffer(0, up.vertices.slice(..));
+                pass.set_index_buffer(up.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..up.count, 0, 0..1);
+            }
+        })
+    }
+}

@@ -1,0 +1,142 @@
+//! BTF rendering: every codebook layout renders the same image, the GPU
+//! agrees with the CPU twin per layout (raw and BC1), reads per pixel are
+//! the paper's, and a BTF covers a NURBS patch.
+
+mod common;
+
+use common::{CPU_VS_REFERENCE, GPU_VS_CPU, Tolerance, assert_images, gpu_or_skip, reference};
+use glam::Vec3;
+use hitex_core::btf::index::IndexMap;
+use hitex_core::btf::synth::{Material, SynthOptions, synthesize};
+use hitex_core::btf::{AngularGrid, Btf, Layout};
+use hitex_core::nurbs::NurbsSurface;
+use hitex_core::scene::Camera;
+use hitex_core::texture::bc1::Bc1Encoder;
+use hitex_render::btf::{BtfSurface, PreparedBtf};
+use hitex_render::cpu::btf::{BtfProgram, varyings};
+use hitex_render::{CpuRenderer, Frame};
+use std::sync::OnceLock;
+
+/// Layouts read the same data through different filters in a different
+/// order: images agree to rounding.
+const LAYOUTS_AGREE: Tolerance = Tolerance { mean_abs: 0.02, p99: 1 };
+
+fn small_btf() -> &'static Btf {
+    static B: OnceLock<Btf> = OnceLock::new();
+    B.get_or_init(|| {
+        let grid = AngularGrid::new(vec![0.0, 20.0, 40.0, 60.0], 8).unwrap();
+        let opts = SynthOptions { grid, size: 8, supersample: 1, exposure: 0.85 };
+        synthesize(Material::Woven, &opts, &|_| {}).unwrap()
+    })
+}
+
+fn index() -> IndexMap {
+    IndexMap::identity(8, 8, 16, 16)
+}
+
+fn camera() -> Camera {
+    Camera::new(Vec3::new(0.0, -1.4, 2.2), Vec3::ZERO, Vec3::Y, 40.0, 0.1, 10.0).unwrap()
+}
+
+const LIGHT: Vec3 = Vec3::new(1.5, 1.0, 2.0);
+const W: u32 = 96;
+const H: u32 = 72;
+
+fn prepared(layout: Layout, bc1: bool) -> PreparedBtf {
+    PreparedBtf::new(small_btf(), layout, bc1.then_some(Bc1Encoder::Ispc), index(), BtfSurface::quad(2.0, 2.0)).unwrap()
+}
+
+fn cpu(p: &PreparedBtf) -> Frame {
+    CpuRenderer::new().render_btf(p, &camera(), LIGHT, W, H).unwrap()
+}
+
+#[test]
+fn every_layout_renders_the_same_image() {
+    let a = cpu(&prepared(Layout::A, false));
+    // the quad is lit and covers a good part of the frame
+    let lit = a.rgba.chunks_exact(4).filter(|p| p[0] as u32 + p[1] as u32 + p[2] as u32 > 60).count();
+    assert!(lit > (W * H / 4) as usize, "only {lit} lit pixels");
+    for layout in Layout::ALL {
+        let f = cpu(&prepared(layout, false));
+        assert_images(&format!("btf-layout-{}", layout.name()), &f, &a, LAYOUTS_AGREE);
+    }
+}
+
+#[test]
+fn cpu_matches_the_reference_image() {
+    let f = cpu(&prepared(Layout::F, false));
+    let want = reference("btf-quad-f", &f);
+    assert_images("btf-quad-f", &f, &want, CPU_VS_REFERENCE);
+}
+
+#[test]
+fn bc1_stays_close_to_the_raw_codebook() {
+    for layout in [Layout::A, Layout::F] {
+        let raw = cpu(&prepared(layout, false));
+        let bc = cpu(&prepared(layout, true));
+        let d = hitex_render::compare_rgba(&raw.rgba, &bc.rgba).0;
+        assert!(d.mean_abs < 8.0 && d.mean_abs > 0.0, "{}: BC1 mean |Δ| {}", layout.label(), d.mean_abs);
+    }
+}
+
+#[test]
+fn gpu_matches_cpu_for_every_layout() {
+    let Some(mut gpu) = gpu_or_skip("gpu_matches_cpu_for_every_layout") else { return };
+    for layout in Layout::ALL {
+        for bc1 in [false, true] {
+            let p = prepared(layout, bc1);
+            let c = cpu(&p);
+            let g = gpu.render_btf(&p, &camera(), LIGHT, W, H).unwrap();
+            let name = format!("btf-gpu-{}{}", layout.name(), if bc1 { "-bc1" } else { "" });
+            assert_images(&name, &g, &c, GPU_VS_CPU);
+        }
+    }
+}
+
+#[test]
+fn reads_per_pixel_are_the_papers() {
+    for layout in Layout::ALL {
+        let p = prepared(layout, false);
+        let frame = p.frame(&camera(), LIGHT, W, H);
+        let prog = BtfProgram::new(&p, &frame);
+        let v = varyings(&p.vertices[0]);
+        // move inside the quad, away from a vertex
+        let mut v = v;
+        v[0] += 0.3;
+        v[1] += 0.2;
+        v[12] += 0.13;
+        v[13] += 0.41;
+        let c = prog.count_reads(&v);
+        assert_eq!(c.reads, layout.codebook_reads() as u64, "{}", layout.label());
+        assert_eq!(c.texels, (layout.codebook_reads() * layout.texels_per_read()) as u64, "{}", layout.label());
+    }
+}
+
+#[test]
+fn btf_covers_a_nurbs_patch() {
+    let model = hitex_io::models::load_model("surface").unwrap();
+    let patches: Vec<NurbsSurface> = model.surfaces.iter().map(|s| s.surface.clone()).collect();
+    let surface = BtfSurface::from_nurbs(&patches, 16, 2.0);
+    // U and V follow the exact partials: unit, tangent to the normal
+    for v in &surface.vertices {
+        let (n, u, w) = (Vec3::from(v.normal), Vec3::from(v.tangent_u), Vec3::from(v.tangent_v));
+        assert!((u.length() - 1.0).abs() < 1e-4 && (w.length() - 1.0).abs() < 1e-4);
+        assert!(n.dot(u).abs() < 1e-3 && n.dot(w).abs() < 1e-3);
+    }
+    let (c, r) = surface.bounds();
+    let p = PreparedBtf::new(small_btf(), Layout::F, None, index(), surface).unwrap();
+    let cam =
+        Camera::new(c + Vec3::new(0.6, -1.2, 1.4).normalize() * r * 2.5, c, Vec3::Z, 40.0, 0.01, r * 10.0).unwrap();
+    let f = CpuRenderer::new().render_btf(&p, &cam, c + Vec3::new(1.0, 0.5, 2.0) * r * 3.0, W, H).unwrap();
+    let bg = f.rgba[0..4].to_vec();
+    let covered = f.rgba.chunks_exact(4).filter(|px| *px != bg.as_slice()).count();
+    assert!(covered > (W * H / 5) as usize, "only {covered} pixels show the patch");
+}
+
+#[test]
+fn bad_index_maps_are_refused() {
+    let bad = IndexMap { width: 2, height: 2, entries: vec![[0, 0], [9, 0], [0, 0], [0, 0]] };
+    assert!(PreparedBtf::new(small_btf(), Layout::A, None, bad, BtfSurface::quad(1.0, 1.0)).is_err());
+    let short = IndexMap { width: 2, height: 2, entries: vec![[0, 0]] };
+    assert!(PreparedBtf::new(small_btf(), Layout::A, None, short, BtfSurface::quad(1.0, 1.0)).is_err());
+}
