@@ -1,6 +1,8 @@
 //! `hitex`: the command-line tool.
 
 mod bench;
+mod bench_btf;
+mod btf_cmd;
 mod demo;
 mod nurbs_cmd;
 mod terrain_cmd;
@@ -64,6 +66,11 @@ enum Command {
         #[command(subcommand)]
         which: terrain_cmd::TerrainCommand,
     },
+    /// BTF: six-dimensional textures (synth, index, import, export, info, render).
+    Btf {
+        #[command(subcommand)]
+        which: btf_cmd::BtfCommand,
+    },
     /// List GPU adapters, their features and limits.
     Info,
     /// Benchmarks: CPU and GPU renderers on the same frames.
@@ -79,6 +86,8 @@ enum BenchCommand {
     Texture(bench::TextureArgs),
     /// The paper's Table 1 models at 512×512, rotating.
     Nurbs(bench::NurbsArgs),
+    /// BTF codebook layouts (a)–(f), raw and BC1, a 256×256 quad in 640×480.
+    Btf(bench_btf::BtfArgs),
 }
 
 #[derive(Clone, Copy, ValueEnum, PartialEq, Eq, Debug)]
@@ -201,6 +210,20 @@ impl AnyRenderer {
             Self::Gpu(g) => g.render_nurbs(scene, camera, w, h),
         }
     }
+    /// Renders one frame of a BTF surface lit by a point light at `light`.
+    pub fn render_btf(
+        &mut self,
+        scene: &hitex_render::btf::PreparedBtf,
+        camera: &hitex_core::scene::Camera,
+        light: glam::Vec3,
+        w: u32,
+        h: u32,
+    ) -> Result<Frame, RenderError> {
+        match self {
+            Self::Cpu(c) => c.render_btf(scene, camera, light, w, h),
+            Self::Gpu(g) => g.render_btf(scene, camera, light, w, h),
+        }
+    }
     /// Renders one frame.
     pub fn render(
         &mut self,
@@ -263,6 +286,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         }
         Command::Nurbs { which } => nurbs_cmd::run(which),
         Command::Terrain { which } => terrain_cmd::run(which),
+        Command::Btf { which } => btf_cmd::run(which),
         Command::Info => {
             println!("hitex {}", env!("CARGO_PKG_VERSION"));
             println!("cpu backend: {} threads", rayon_threads());
@@ -272,6 +296,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Bench { which } => match which {
             BenchCommand::Texture(args) => bench::texture(args),
             BenchCommand::Nurbs(args) => bench::nurbs(args),
+            BenchCommand::Btf(args) => bench_btf::btf(args),
         },
     }
 }

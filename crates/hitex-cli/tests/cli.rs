@@ -373,3 +373,90 @@ fn terrain_active_area_and_render() {
     assert_eq!(o.status.code(), Some(2));
     assert!(error_lines(&o)[0].contains("fake.tif"));
 }
+
+#[test]
+fn btf_synth_info_index_render_export_import() {
+    let d = tmp("btf");
+    let h = d.join("w.hbtf");
+    let hs = h.to_str().unwrap();
+    let o = hitex(&[
+        "btf",
+        "synth",
+        "woven",
+        "-o",
+        hs,
+        "--size",
+        "8",
+        "--theta",
+        "0,30,60",
+        "--phi",
+        "6",
+        "--supersample",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = hitex(&["btf", "info", hs]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("8x8 texels") && text.contains("(f)") && text.contains("324 images"), "{text}");
+    let idx = d.join("i.png");
+    let o = hitex(&["btf", "index", hs, "--size", "24", "-o", idx.to_str().unwrap(), "--passes", "2"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(d.join("i-preview.png").exists());
+    for (layout, bc1) in [("a", false), ("f", true), ("c2", false)] {
+        let out = d.join(format!("r-{layout}.png"));
+        let mut args = vec!["btf", "render", hs, "--layout", layout, "--index", idx.to_str().unwrap()];
+        args.extend(["-o", out.to_str().unwrap(), "--size", "64x48", "--backend", "cpu"]);
+        if bc1 {
+            args.push("--bc1");
+        }
+        let o = hitex(&args);
+        assert!(o.status.success(), "{layout}: {}", String::from_utf8_lossy(&o.stderr));
+        assert!(out.exists());
+    }
+    // image set round trip
+    let set = d.join("set");
+    let o = hitex(&["btf", "export", hs, set.to_str().unwrap(), "--convention", "ubo"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let back = d.join("back.hbtf");
+    let o = hitex(&["btf", "import", set.to_str().unwrap(), "-o", back.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read(&h).unwrap(), std::fs::read(&back).unwrap(), "export + import changed the BTF");
+}
+
+#[test]
+fn btf_bad_input_gives_one_clear_line() {
+    let d = tmp("btf-bad");
+    let h = d.join("t.hbtf");
+    let o = hitex(&["btf", "synth", "knit", "-o", h.to_str().unwrap(), "--size", "4", "--theta", "0,45", "--phi", "4"]);
+    assert!(o.status.success());
+    // truncated file
+    let bytes = std::fs::read(&h).unwrap();
+    let cut = d.join("cut.hbtf");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let out = d.join("o.png");
+    let o = hitex(&["btf", "render", cut.to_str().unwrap(), "-o", out.to_str().unwrap(), "--backend", "cpu"]);
+    let lines = error_lines(&o);
+    assert_eq!(o.status.code(), Some(2), "{lines:?}");
+    assert!(lines.len() == 1 && lines[0].contains("cut.hbtf"), "{lines:?}");
+    assert!(!out.exists());
+    // unknown layout, material, surface; decreasing angles
+    for (args, needle) in [
+        (vec!["btf", "render", h.to_str().unwrap(), "--layout", "g", "-o", "x.png"], "layout 'g'"),
+        (vec!["btf", "synth", "velvet", "-o", "x.hbtf"], "velvet"),
+        (vec!["btf", "render", h.to_str().unwrap(), "--on", "cone", "-o", "x.png"], "cone"),
+        (vec!["btf", "synth", "knit", "-o", "x.hbtf", "--theta", "30,10"], "theta[1]"),
+    ] {
+        let o = hitex(&args);
+        let lines = error_lines(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {lines:?}");
+        assert!(lines.len() == 1 && lines[0].contains(needle), "{args:?}: {lines:?}");
+    }
+    // an index map naming texels outside the sample
+    let idx = d.join("big.png");
+    image::RgbImage::from_pixel(4, 4, image::Rgb([200, 0, 0])).save(&idx).unwrap();
+    let o =
+        hitex(&["btf", "render", h.to_str().unwrap(), "--index", idx.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let lines = error_lines(&o);
+    assert_eq!(o.status.code(), Some(2), "{lines:?}");
+    assert!(lines[0].contains("big.png") && lines[0].contains("outside"), "{lines:?}");
+}

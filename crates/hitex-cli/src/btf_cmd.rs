@@ -1,0 +1,499 @@
+//! `hitex btf …`: synthesise, inspect, import, export and render BTFs.
+
+use crate::{AnyRenderer, Backend, CliError, parse_size, save};
+use clap::{Subcommand, ValueEnum};
+use glam::Vec3;
+use hitex_core::btf::index::{IndexMap, SynthesisOptions, features, seam_quality, synthesize_index};
+use hitex_core::btf::synth::{Material, SynthOptions, synthesize};
+use hitex_core::btf::{AngularGrid, Btf, Layout};
+use hitex_core::scene::Camera;
+use hitex_core::texture::bc1::Bc1Encoder;
+use hitex_render::btf::{BtfSurface, PreparedBtf};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// `hitex btf` subcommands.
+#[derive(Subcommand)]
+pub enum BtfCommand {
+    /// Generate a procedural BTF (corduroy, knit, leather, woven, brushed-metal).
+    Synth {
+        /// Material name.
+        material: String,
+        /// Output `.hbtf`.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Sample side in texels (the paper's is 32).
+        #[arg(long, default_value_t = 32)]
+        size: u32,
+        /// Polar angles in degrees, comma-separated (default: 0,10,…,70).
+        #[arg(long, value_delimiter = ',')]
+        theta: Option<Vec<f32>>,
+        /// Azimuth count (default 16).
+        #[arg(long, default_value_t = 16)]
+        phi: usize,
+        /// Rays per texel side.
+        #[arg(long, default_value_t = 2)]
+        supersample: u32,
+    },
+    /// Describe a `.hbtf` file: grid, sample, sizes of every layout.
+    Info {
+        /// Input `.hbtf`.
+        input: PathBuf,
+    },
+    /// Grow a seamless, tileable index map from the BTF's sample.
+    Index {
+        /// Input `.hbtf` (or a material name, synthesised on the fly).
+        input: String,
+        /// Index map side in texels.
+        #[arg(long, default_value_t = 128)]
+        size: u32,
+        /// Output index map (16-bit PNG: red = sample column, green = sample row).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Random seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Correction passes.
+        #[arg(long, default_value_t = 3)]
+        passes: u32,
+    },
+    /// Import a BTF image set (UBO2003/ATRIUM zip or folder, UTIA folder).
+    Import {
+        /// Zip archive or folder.
+        input: PathBuf,
+        /// Output `.hbtf`.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Resize the images to SIZE×SIZE texels.
+        #[arg(long)]
+        size: Option<u32>,
+        /// Target polar angles (degrees, comma-separated) for resampling.
+        #[arg(long, value_delimiter = ',')]
+        theta: Option<Vec<f32>>,
+        /// Target azimuth count for resampling.
+        #[arg(long)]
+        phi: Option<usize>,
+    },
+    /// Export a BTF as an image set (one PNG per view/light pair).
+    Export {
+        /// Input `.hbtf`.
+        input: PathBuf,
+        /// Output folder.
+        output: PathBuf,
+        /// File-name convention.
+        #[arg(long, value_enum, default_value_t = ConventionArg::Utia)]
+        convention: ConventionArg,
+    },
+    /// Render a BTF on a surface through one codebook layout.
+    Render {
+        /// Input `.hbtf` (or a material name, synthesised on the fly).
+        input: String,
+        /// Output PNG.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Codebook layout: a, b, c, c2, d, e, e2, f.
+        #[arg(long, default_value = "f")]
+        layout: String,
+        /// Compress the codebook with BC1 (DXT1).
+        #[arg(long)]
+        bc1: bool,
+        /// Surface: quad, sphere, torus, teapot, surface (NURBS), or an OBJ mesh.
+        #[arg(long, default_value = "quad")]
+        on: String,
+        /// Index map PNG (default: synthesised, 128×128).
+        #[arg(long)]
+        index: Option<PathBuf>,
+        /// Index-map repeats across the surface.
+        #[arg(long, default_value_t = 1.0)]
+        repeats: f32,
+        /// Light azimuth in degrees around the surface.
+        #[arg(long, default_value_t = 30.0)]
+        light_azimuth: f32,
+        /// Light elevation in degrees above the surface's plane.
+        #[arg(long, default_value_t = 45.0)]
+        light_elevation: f32,
+        /// Output size, WIDTHxHEIGHT.
+        #[arg(long, value_parser = parse_size, default_value = "640x480")]
+        size: (u32, u32),
+        /// Which renderer to use.
+        #[arg(long, value_enum, default_value_t = Backend::Auto)]
+        backend: Backend,
+    },
+}
+
+/// Image-set naming conventions.
+#[derive(Clone, Copy, ValueEnum, Debug)]
+pub enum ConventionArg {
+    /// `tl000 pl000 tv000 pv000.png` (Bonn UBO2003/ATRIUM).
+    Ubo,
+    /// `tl000_pl000_tv000_pv000.png` (UTIA).
+    Utia,
+}
+
+fn bar(len: u64, what: &str) -> ProgressBar {
+    let pb = ProgressBar::new(len);
+    pb.set_style(
+        ProgressStyle::with_template("{prefix:>12} [{bar:30}] {pos}/{len} {msg} {elapsed}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    pb.set_prefix(what.to_string());
+    pb
+}
+
+fn grid_from(theta: Option<Vec<f32>>, phi: usize) -> Result<AngularGrid, CliError> {
+    match theta {
+        Some(t) => AngularGrid::new(t, phi).map_err(|e| CliError::Input(e.to_string())),
+        None if phi == 16 => Ok(AngularGrid::paper()),
+        None => {
+            AngularGrid::new((0..8).map(|i| i as f32 * 10.0).collect(), phi).map_err(|e| CliError::Input(e.to_string()))
+        }
+    }
+}
+
+/// Synthesises `material` with a progress bar.
+pub fn synth_with_progress(material: Material, opts: &SynthOptions, quiet: bool) -> Result<Btf, CliError> {
+    let pb = if quiet { ProgressBar::hidden() } else { bar(opts.grid.directions() as u64, "synth") };
+    pb.set_message("view directions");
+    let btf =
+        synthesize(material, opts, &|done| pb.set_position(done as u64)).map_err(|e| CliError::Input(e.to_string()))?;
+    pb.finish_and_clear();
+    Ok(btf)
+}
+
+/// A `.hbtf` path, or a material name synthesised with the paper's defaults.
+pub fn load_or_synth(input: &str, quiet: bool) -> Result<Btf, CliError> {
+    if let Some(m) = Material::parse(input)
+        && !Path::new(input).exists()
+    {
+        return synth_with_progress(m, &SynthOptions::default(), quiet);
+    }
+    Ok(hitex_io::btf_file::read_hbtf(Path::new(input))?)
+}
+
+/// Grows an index map with a progress bar.
+pub fn index_with_progress(btf: &Btf, size: u32, seed: u64, passes: u32, quiet: bool) -> Result<IndexMap, CliError> {
+    let opts = SynthesisOptions { width: size, height: size, seed, passes, ..Default::default() };
+    let pb = if quiet { ProgressBar::hidden() } else { bar(passes as u64, "index") };
+    pb.set_message("passes");
+    let map =
+        synthesize_index(btf, &opts, &|p, _| pb.set_position(p as u64)).map_err(|e| CliError::Input(e.to_string()))?;
+    pb.finish_and_clear();
+    Ok(map)
+}
+
+/// Writes an index map as a 16-bit RGB PNG: red = sample column, green = sample row.
+pub fn save_index(map: &IndexMap, path: &Path) -> Result<(), CliError> {
+    let mut data: Vec<u16> = Vec::with_capacity(map.entries.len() * 3);
+    for e in &map.entries {
+        data.extend_from_slice(&[e[0], e[1], 0]);
+    }
+    let img = image::ImageBuffer::<image::Rgb<u16>, _>::from_raw(map.width, map.height, data)
+        .ok_or_else(|| CliError::Internal("index map buffer has the wrong size".into()))?;
+    let tmp = path.with_extension("png.tmp");
+    img.save_with_format(&tmp, image::ImageFormat::Png)
+        .map_err(|e| CliError::Internal(format!("{}: {e}", path.display())))?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        CliError::Internal(format!("{}: {e}", path.display()))
+    })
+}
+
+/// Reads an index map PNG written by [`save_index`] (8- or 16-bit), checking
+/// every entry against the sample size.
+pub fn load_index(path: &Path, btf: &Btf) -> Result<IndexMap, CliError> {
+    let img = image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?
+        .decode()
+        .map_err(|e| CliError::Input(format!("{}: not a readable image: {e}", path.display())))?
+        .into_rgb16();
+    let (w, h) = img.dimensions();
+    let mut entries = Vec::with_capacity((w * h) as usize);
+    for (i, p) in img.pixels().enumerate() {
+        // 8-bit files are widened ×257 by the decoder
+        let (u, v) = if img.as_raw().iter().all(|c| c % 257 == 0) && btf.width() <= 256 {
+            (p[0] / 257, p[1] / 257)
+        } else {
+            (p[0], p[1])
+        };
+        if u as u32 >= btf.width() || v as u32 >= btf.height() {
+            return Err(CliError::Input(format!(
+                "{}: texel {} names sample texel ({u}, {v}) outside the {}x{} sample",
+                path.display(),
+                i,
+                btf.width(),
+                btf.height()
+            )));
+        }
+        entries.push([u, v]);
+    }
+    Ok(IndexMap { width: w, height: h, entries })
+}
+
+/// The surface to render on.
+pub fn surface_for(on: &str, repeats: f32) -> Result<BtfSurface, CliError> {
+    use hitex_core::scene::Mesh;
+    Ok(match on {
+        "quad" => BtfSurface::quad(2.0, repeats),
+        "sphere" => BtfSurface::from_mesh(&Mesh::sphere(64, 32), repeats),
+        "torus" => BtfSurface::from_mesh(&Mesh::torus(0.35, 96, 48), repeats),
+        "teapot" | "surface" => {
+            let model = hitex_io::models::load_model(on)?;
+            let surfaces: Vec<_> = model.surfaces.iter().map(|s| s.surface.clone()).collect();
+            BtfSurface::from_nurbs(&surfaces, 24, repeats)
+        }
+        path if path.ends_with(".obj") => {
+            let meshes = hitex_io::load_obj(Path::new(path))?;
+            let mut s = BtfSurface::default();
+            for m in meshes {
+                let part = BtfSurface::from_mesh(&m, repeats);
+                let base = s.vertices.len() as u32;
+                s.vertices.extend(part.vertices);
+                s.indices.extend(part.indices.iter().map(|i| i + base));
+            }
+            s
+        }
+        other => {
+            return Err(CliError::Input(format!(
+                "unknown surface '{other}': use quad, sphere, torus, teapot, surface or a .obj file"
+            )));
+        }
+    })
+}
+
+/// A camera framing `surface` from the front-right, above.
+pub fn camera_for(surface: &BtfSurface, quad: bool) -> Result<Camera, CliError> {
+    let (c, r) = surface.bounds();
+    let dir = if quad { Vec3::new(0.0, -0.55, 1.0).normalize() } else { Vec3::new(0.8, -1.6, 0.9).normalize() };
+    let fov: f32 = 35.0;
+    let dist = r / (fov.to_radians() / 2.0).sin() * 1.05;
+    let up = if quad { Vec3::Y } else { Vec3::Z };
+    Camera::new(c + dir * dist, c, up, fov, dist * 0.05, dist * 4.0).map_err(|e| CliError::Input(e.to_string()))
+}
+
+/// The light position at `azimuth`/`elevation` (degrees) around `surface`.
+pub fn light_for(surface: &BtfSurface, quad: bool, azimuth: f32, elevation: f32) -> Vec3 {
+    let (c, r) = surface.bounds();
+    let (a, e) = (azimuth.to_radians(), elevation.to_radians());
+    let d = if quad {
+        Vec3::new(e.cos() * a.cos(), e.cos() * a.sin(), e.sin())
+    } else {
+        Vec3::new(e.cos() * a.cos(), e.cos() * a.sin(), e.sin()).normalize()
+    };
+    c + d * (r * 6.0)
+}
+
+fn parse_layout(s: &str) -> Result<Layout, CliError> {
+    Layout::parse(s).ok_or_else(|| CliError::Input(format!("unknown layout '{s}': use a, b, c, c2, d, e, e2 or f")))
+}
+
+/// Runs a `hitex btf` subcommand.
+pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
+    match cmd {
+        BtfCommand::Synth { material, output, size, theta, phi, supersample } => {
+            let m = Material::parse(&material).ok_or_else(|| {
+                let names: Vec<_> = Material::ALL.iter().map(|m| m.name()).collect();
+                CliError::Input(format!("unknown material '{material}': use one of {}", names.join(", ")))
+            })?;
+            let grid = grid_from(theta, phi)?;
+            let opts = SynthOptions { grid, size, supersample, ..Default::default() };
+            let t = Instant::now();
+            let btf = synth_with_progress(m, &opts, false)?;
+            let secs = t.elapsed().as_secs_f64();
+            hitex_io::btf_file::write_hbtf(&output, &btf)?;
+            println!(
+                "wrote {}: {} {} images of {}x{} texels ({:.1} MiB as RGBA8) in {secs:.2} s",
+                output.display(),
+                btf.images(),
+                m.name(),
+                btf.width(),
+                btf.height(),
+                btf.gpu_bytes() as f64 / (1 << 20) as f64
+            );
+            Ok(())
+        }
+        BtfCommand::Info { input } => {
+            let btf = hitex_io::btf_file::read_hbtf(&input)?;
+            let g = btf.grid();
+            println!("{}", input.display());
+            println!("  sample: {}x{} texels", btf.width(), btf.height());
+            println!(
+                "  grid: θ = {:?}° ({}), φ: {} × {:.2}°; {} view × {} light directions, {} images",
+                g.theta_deg(),
+                g.theta_count(),
+                g.phi_count(),
+                360.0 / g.phi_count() as f32,
+                g.directions(),
+                g.directions(),
+                btf.images()
+            );
+            println!(
+                "  codebook: {:.1} MiB as RGBA8, {:.1} MiB as BC1",
+                btf.gpu_bytes() as f64 / 1048576.0,
+                btf.gpu_bytes() as f64 / 8.0 / 1048576.0
+            );
+            println!("  layouts:");
+            for l in Layout::ALL {
+                match hitex_core::btf::Codebook::build(&btf, l) {
+                    Ok(cb) => println!(
+                        "    {:<5} {:>5}x{:<5}x{:<3} texels, tiles {}x{}, {:>3} reads/pixel, {:.1} MiB",
+                        l.label(),
+                        cb.width,
+                        cb.height,
+                        cb.depth,
+                        cb.tile_w,
+                        cb.tile_h,
+                        l.codebook_reads(),
+                        cb.bytes() as f64 / 1048576.0
+                    ),
+                    Err(e) => println!("    {:<5} not possible: {e}", l.label()),
+                }
+            }
+            Ok(())
+        }
+        BtfCommand::Index { input, size, output, seed, passes } => {
+            let btf = load_or_synth(&input, false)?;
+            let t = Instant::now();
+            let map = index_with_progress(&btf, size, seed, passes, false)?;
+            let secs = t.elapsed().as_secs_f64();
+            save_index(&map, &output)?;
+            let feats = features(&btf, 8);
+            let q = seam_quality(&btf, &map, &feats);
+            let tiled = IndexMap::identity(btf.width(), btf.height(), size, size);
+            let qt = seam_quality(&btf, &tiled, &feats);
+            // preview: the u/v colours beside the frontal appearance through the map
+            let preview = output.with_file_name(format!(
+                "{}-preview.png",
+                output.file_stem().and_then(|s| s.to_str()).unwrap_or("index")
+            ));
+            save(&index_preview(&btf, &map), &preview)?;
+            println!(
+                "wrote {} ({size}x{size}) in {secs:.2} s; neighbour error: interior {:.4}, across the wrap edges {:.4} (ratio {:.2}); plain tiling of the sample: {:.4}; preview {}",
+                output.display(),
+                q.interior_error,
+                q.seam_error,
+                q.ratio,
+                qt.interior_error,
+                preview.display()
+            );
+            Ok(())
+        }
+        BtfCommand::Import { input, output, size, theta, phi } => {
+            let grid = match (theta, phi) {
+                (None, None) => None,
+                (t, p) => Some(grid_from(t, p.unwrap_or(16))?),
+            };
+            let pb = bar(0, "import");
+            pb.set_message("images");
+            let (btf, report) = hitex_io::btf_images::import_image_set(&input, grid, size, &|done, total| {
+                pb.set_length(total as u64);
+                pb.set_position(done as u64);
+            })?;
+            pb.finish_and_clear();
+            hitex_io::btf_file::write_hbtf(&output, &btf)?;
+            println!(
+                "wrote {}: {} images read ({} view × {} light directions), {}x{} texels, grid {}×{}{}",
+                output.display(),
+                report.images,
+                report.view_dirs,
+                report.light_dirs,
+                btf.width(),
+                btf.height(),
+                btf.grid().theta_count(),
+                btf.grid().phi_count(),
+                if report.resampled { format!("; resampled: {}", report.method) } else { String::new() }
+            );
+            for (what, list) in
+                [("missing", &report.missing), ("duplicated", &report.duplicated), ("ignored", &report.ignored)]
+            {
+                if !list.is_empty() {
+                    let shown: Vec<_> = list.iter().take(8).cloned().collect();
+                    println!(
+                        "  {what}: {} ({}{})",
+                        list.len(),
+                        shown.join(", "),
+                        if list.len() > 8 { ", …" } else { "" }
+                    );
+                }
+            }
+            Ok(())
+        }
+        BtfCommand::Export { input, output, convention } => {
+            let btf = hitex_io::btf_file::read_hbtf(&input)?;
+            let conv = match convention {
+                ConventionArg::Ubo => hitex_io::btf_images::Convention::Ubo,
+                ConventionArg::Utia => hitex_io::btf_images::Convention::Utia,
+            };
+            let n = hitex_io::btf_images::export_image_set(&btf, &output, conv)?;
+            println!("wrote {n} images to {}", output.display());
+            Ok(())
+        }
+        BtfCommand::Render {
+            input,
+            output,
+            layout,
+            bc1,
+            on,
+            index,
+            repeats,
+            light_azimuth,
+            light_elevation,
+            size,
+            backend,
+        } => {
+            let layout = parse_layout(&layout)?;
+            let btf = load_or_synth(&input, false)?;
+            let map = match index {
+                Some(p) => load_index(&p, &btf)?,
+                None => index_with_progress(&btf, 128, 1, 3, false)?,
+            };
+            let surface = surface_for(&on, repeats)?;
+            let quad = on == "quad";
+            let camera = camera_for(&surface, quad)?;
+            let light = light_for(&surface, quad, light_azimuth, light_elevation);
+            let t = Instant::now();
+            let prepared = PreparedBtf::new(&btf, layout, bc1.then_some(Bc1Encoder::Ispc), map, surface)?;
+            let prep_ms = t.elapsed().as_secs_f64() * 1e3;
+            let mut r = AnyRenderer::open(backend.into())?;
+            let t = Instant::now();
+            let frame = r.render_btf(&prepared, &camera, light, size.0, size.1)?;
+            let ms = t.elapsed().as_secs_f64() * 1e3;
+            save(&frame, &output)?;
+            println!(
+                "wrote {} ({}x{}, layout {}{}, {} codebook reads per pixel, {}) in {ms:.1} ms (+{prep_ms:.0} ms layout{})",
+                output.display(),
+                size.0,
+                size.1,
+                layout.label(),
+                if bc1 { " BC1" } else { "" },
+                layout.codebook_reads(),
+                r.name(),
+                if bc1 { " + BC1" } else { "" }
+            );
+            Ok(())
+        }
+    }
+}
+
+/// The index map's u/v colours beside the frontal appearance (view and light
+/// at θ = 0) of the BTF read through it.
+pub fn index_preview(btf: &Btf, map: &IndexMap) -> hitex_render::Frame {
+    let (w, h) = (map.width, map.height);
+    let uv = map.to_rgba(btf.width(), btf.height());
+    let mut rgba = vec![0u8; (2 * w * h * 4) as usize];
+    let img = btf.image(0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            let o = ((y * 2 * w + x) * 4) as usize;
+            let i = ((y * w + x) * 4) as usize;
+            rgba[o..o + 4].copy_from_slice(&uv[i..i + 4]);
+            let e = map.get(x, y);
+            let s = ((e[1] as u32 * btf.width() + e[0] as u32) * 3) as usize;
+            let o2 = o + (w * 4) as usize;
+            rgba[o2..o2 + 4].copy_from_slice(&[img[s], img[s + 1], img[s + 2], 255]);
+        }
+    }
+    hitex_render::Frame { width: 2 * w, height: h, rgba }
+}
