@@ -103,7 +103,10 @@ pub struct CacheRow {
     pub bytes_per_pixel: f64,
     /// Bytes fetched per texture instruction.
     pub bytes_per_read: f64,
-    /// Load efficiency: bytes per read of layout (a) uncompressed over this case's.
+    /// Bytes fetched per texel the filter touches.
+    pub bytes_per_texel: f64,
+    /// Load efficiency: bytes per touched texel of layout (a) uncompressed
+    /// over this case's (memory traffic per unit of texture work; > 1 is better).
     pub load_efficiency: f64,
 }
 
@@ -239,6 +242,7 @@ pub fn btf(args: BtfArgs) -> Result<(), CliError> {
             hit_rate: model.hit_rate(),
             bytes_per_pixel: model.bytes_fetched() as f64 / px,
             bytes_per_read: model.bytes_fetched() as f64 / model.reads.max(1) as f64,
+            bytes_per_texel: model.bytes_fetched() as f64 / model.accesses.max(1) as f64,
             load_efficiency: 0.0,
         });
         // timing on both backends
@@ -251,10 +255,10 @@ pub fn btf(args: BtfArgs) -> Result<(), CliError> {
         reports.push(run_case_fns("btf", &[(name, f)], args.frames, args.size, args.backends, quiet)?);
     }
     // load efficiency relative to (a) uncompressed
-    let base = cache_rows.iter().find(|c| c.case == "layout-a").map(|c| c.bytes_per_read);
+    let base = cache_rows.iter().find(|c| c.case == "layout-a").map(|c| c.bytes_per_texel);
     for c in &mut cache_rows {
         c.load_efficiency = match base {
-            Some(b) if c.bytes_per_read > 0.0 => b / c.bytes_per_read,
+            Some(b) if c.bytes_per_texel > 0.0 => b / c.bytes_per_texel,
             _ => f64::NAN,
         };
     }
@@ -342,12 +346,12 @@ fn print_report(r: &BtfReport) {
     println!();
     println!("texture-cache model ({}), first frame:", r.cache);
     println!(
-        "{:<16} {:>8} {:>10} {:>10} {:>8} {:>10} {:>10} {:>10}",
-        "case", "pixels", "reads/px", "texels/px", "hit %", "bytes/px", "bytes/read", "load eff."
+        "{:<16} {:>8} {:>10} {:>10} {:>8} {:>10} {:>10} {:>11} {:>10}",
+        "case", "pixels", "reads/px", "texels/px", "hit %", "bytes/px", "bytes/read", "bytes/texel", "load eff."
     );
     for c in &r.cache_model {
         println!(
-            "{:<16} {:>8} {:>10.1} {:>10.1} {:>8.2} {:>10.1} {:>10.2} {:>10.2}",
+            "{:<16} {:>8} {:>10.1} {:>10.1} {:>8.2} {:>10.1} {:>10.2} {:>11.3} {:>10.2}",
             c.case,
             c.pixels,
             c.reads_per_pixel,
@@ -355,6 +359,7 @@ fn print_report(r: &BtfReport) {
             c.hit_rate * 100.0,
             c.bytes_per_pixel,
             c.bytes_per_read,
+            c.bytes_per_texel,
             c.load_efficiency
         );
     }

@@ -43,12 +43,7 @@ type Report<'a> = dyn FnMut(&str, &str, &Frame, f64) -> Result<(), CliError> + '
 /// corduroy on the NURBS teapot under a moving light, layouts (a) | (f) |
 /// (f)+BC1 with their difference, and the synthesised index map. Returns the
 /// number of images written.
-fn btf_showcase(
-    r: &mut AnyRenderer,
-    report: &mut Report<'_>,
-    w: u32,
-    h: u32,
-) -> Result<usize, CliError> {
+fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) -> Result<usize, CliError> {
     use crate::btf_cmd::{camera_for, index_preview, index_with_progress, light_for, surface_for, synth_with_progress};
     use hitex_core::btf::Layout;
     use hitex_core::btf::synth::{Material, SynthOptions};

@@ -222,6 +222,9 @@ pub struct PreparedBtf {
     pub codebook: Codebook,
     /// BC1 blocks of the codebook (slice by slice), when compressed.
     pub bc1: Option<Vec<u8>>,
+    /// The codebook's texels decoded to linear RGB: the CPU twin's copy of
+    /// what the GPU's sRGB (and BC1) decoder feeds its filter.
+    pub linear: Vec<glam::Vec4>,
     /// The index map.
     pub index: IndexMap,
     /// The angular grid.
@@ -266,7 +269,9 @@ impl PreparedBtf {
             }
             None => None,
         };
+        let linear = codebook.linear_texels();
         Ok(Self {
+            linear,
             id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             vertices: surface.vertices,
             indices: surface.indices,

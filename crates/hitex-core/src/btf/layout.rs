@@ -38,7 +38,7 @@ use crate::CoreError;
 use crate::texture::ColorSpace;
 use crate::texture::image::decode_table;
 use crate::texture::sampler::floor;
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
 /// One of the six axes of a BTF codebook.
@@ -569,6 +569,37 @@ impl Codebook {
         Vec3::new(r, g, b)
     }
 
+    /// The texels decoded to linear RGB (alpha 1), one SIMD vector each:
+    /// what the GPU's sRGB decoder hands its filter, cached for the CPU twin.
+    pub fn linear_texels(&self) -> Vec<Vec4> {
+        let lut = decode_table(ColorSpace::Srgb);
+        self.texels
+            .par_chunks(4 * 4096)
+            .flat_map_iter(|c| {
+                c.chunks_exact(4).map(|t| Vec4::new(lut[t[0] as usize], lut[t[1] as usize], lut[t[2] as usize], 1.0))
+            })
+            .collect()
+    }
+
+    /// [`Codebook::corner_planned`] reading the decoded texels of
+    /// [`Codebook::linear_texels`]; RGB in x, y, z.
+    #[inline]
+    pub fn corner_planned_linear(&self, plan: &PixelPlan, su: u32, sv: u32, linear: &[Vec4]) -> Vec4 {
+        let (su_k, sv_k) = (su * self.strides[0], sv * self.strides[1]);
+        let (dx, dy) = (if plan.u_on_x { su } else { 0 }, if plan.v_on_y { sv } else { 0 });
+        let w = self.width as usize;
+        let mut acc = Vec4::ZERO;
+        for &(k_ang, wc) in &plan.combos[..plan.n_combos] {
+            let k = k_ang + su_k + sv_k;
+            let (col, row) = (k % self.tile_cols, k / self.tile_cols);
+            let base = (row * self.tile_h + dy) as usize * w + (col * self.tile_w + dx) as usize;
+            for &(off, wt) in &plan.taps[..plan.n_taps] {
+                acc += linear[base + off] * (wc * wt);
+            }
+        }
+        acc
+    }
+
     /// A bilinear read at texel-space (x, y) of layer z, clamp-to-edge.
     fn bilinear<S: FetchSink>(&self, x: f32, y: f32, z: u32, sink: &mut S) -> Vec3 {
         sink.read();
@@ -693,12 +724,15 @@ mod tests {
         let lut = decode_table(ColorSpace::Srgb);
         for layout in Layout::ALL {
             let cb = Codebook::build(&b, layout).unwrap();
+            let linear = cb.linear_texels();
             for k in 0..300 {
                 let l = lerps(b.grid(), k);
                 let (su, sv) = (k % 6, (k / 6) % 4);
                 let want = cb.corner(su, sv, &l, &mut ());
                 let got = cb.corner_planned(&cb.plan(&l), su, sv, lut);
                 assert!((want - got).abs().max_element() < 1e-4, "{}: {got} vs {want}", layout.label());
+                let lin = cb.corner_planned_linear(&cb.plan(&l), su, sv, &linear).truncate();
+                assert!((want - lin).abs().max_element() < 1e-4, "{}: {lin} vs {want}", layout.label());
             }
         }
     }

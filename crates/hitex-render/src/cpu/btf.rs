@@ -13,9 +13,8 @@ use crate::btf::{BtfFrame, BtfVertex, PreparedBtf};
 use glam::Vec3;
 use hitex_core::btf::layout::{FetchSink, ReadCounter};
 use hitex_core::btf::{AngleLerps, Codebook, angles};
-use hitex_core::texture::image::decode_table;
+use hitex_core::texture::linear_to_srgb_u8;
 use hitex_core::texture::sampler::floor;
-use hitex_core::texture::{ColorSpace, linear_to_srgb_u8};
 
 /// Varyings: world position (3), N (3), U (3), V (3), T (2).
 pub const VARYINGS: usize = 14;
@@ -86,11 +85,12 @@ impl<'a> BtfProgram<'a> {
         } else {
             // the same reads with the per-pixel invariants hoisted
             let plan = cb.plan(&l);
-            let lut = decode_table(ColorSpace::Srgb);
+            let mut a4 = glam::Vec4::ZERO;
             for (x, y, wgt) in corners {
                 let e = idx.get(x, y);
-                acc += cb.corner_planned(&plan, e[0] as u32, e[1] as u32, lut) * wgt;
+                a4 += cb.corner_planned_linear(&plan, e[0] as u32, e[1] as u32, &self.scene.linear) * wgt;
             }
+            acc = a4.truncate();
         }
         acc * self.exposure
     }
