@@ -57,7 +57,7 @@ fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) ->
         let btf = synth_with_progress(m, &SynthOptions::default(), true)?;
         let index = index_with_progress(&btf, 64, 7, 3, true)?;
         let surface = BtfSurface::quad(2.0, 1.0);
-        let cam = camera_for(&surface, true)?;
+        let cam = camera_for(&surface, true, 1.0)?;
         let light = light_for(&surface, true, 35.0, 40.0);
         let p = PreparedBtf::new(&btf, Layout::F, None, index.clone(), surface)?;
         let t = Instant::now();
@@ -75,21 +75,21 @@ fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) ->
     )?;
     let Some((btf, index)) = corduroy else { return Ok(1) };
     // the corduroy on the teapot (U, V from the exact partials), light moving round
-    let teapot = surface_for("teapot", 6.0)?;
-    let cam = camera_for(&teapot, false)?;
-    let p = PreparedBtf::new(&btf, Layout::F, None, index.clone(), teapot.clone())?;
+    let teapot = surface_for("teapot", 0.6)?;
     let (pw, ph) = ((w / 3).max(1), h);
+    let cam = camera_for(&teapot, false, pw as f32 / ph as f32)?;
+    let p = PreparedBtf::new(&btf, Layout::F, None, index.clone(), teapot.clone())?;
     let mut panels = Vec::new();
     let mut ms_sum = 0.0;
-    for az in [-60.0, 30.0, 120.0] {
+    for az in [-150.0, -63.0, 20.0] {
         let t = Instant::now();
-        panels.push(r.render_btf(&p, &cam, light_for(&teapot, false, az, 35.0), pw, ph)?);
+        panels.push(r.render_btf(&p, &cam, light_for(&teapot, false, az, 45.0), pw, ph)?);
         ms_sum += t.elapsed().as_secs_f64() * 1e3;
     }
     report("btf-teapot.png", "BTF corduroy on the NURBS teapot, light moving round", &side_by_side(&panels), ms_sum)?;
     // layouts (a) | (f) | (f)+BC1 | |(a) − (f)+BC1| × 8
     let quad = BtfSurface::quad(2.0, 1.0);
-    let cam = camera_for(&quad, true)?;
+    let cam = camera_for(&quad, true, 1.0)?;
     let light = light_for(&quad, true, 200.0, 30.0);
     let side = (w / 4).clamp(1, h.max(1));
     let mut panels = Vec::new();
