@@ -113,6 +113,41 @@ fn reads_per_pixel_are_the_papers() {
 }
 
 #[test]
+fn quad_lanes_equal_the_per_pixel_program() {
+    for layout in [Layout::A, Layout::D, Layout::F] {
+        let p = prepared(layout, false);
+        let frame = p.frame(&camera(), LIGHT, W, H);
+        let prog = BtfProgram::new(&p, &frame);
+        let base = varyings(&p.vertices[0]);
+        for k in 0..50 {
+            let lanes: [[f32; 14]; 4] = std::array::from_fn(|i| {
+                let mut v = base;
+                let s = (k * 4 + i) as f32;
+                v[0] += 0.017 * s;
+                v[1] += 0.029 * (s % 7.0);
+                v[12] += 0.011 * s;
+                v[13] += 0.023 * (s % 5.0);
+                if k % 9 == 0 && i == 2 {
+                    v[3] = -v[3]; // a back-facing lane
+                    v[5] = -v[5];
+                }
+                v
+            });
+            let quad = prog.shade_quad(&lanes, 0b1111);
+            for i in 0..4 {
+                let one = prog.shade_linear(&lanes[i], &mut ());
+                assert!(
+                    (quad[i] - one).abs().max_element() < 1e-5,
+                    "{}: lane {i}: {} vs {one}",
+                    layout.label(),
+                    quad[i]
+                );
+            }
+        }
+    }
+}
+
+#[test]
 fn btf_covers_a_nurbs_patch() {
     let model = hitex_io::models::load_model("surface").unwrap();
     let patches: Vec<NurbsSurface> = model.surfaces.iter().map(|s| s.surface.clone()).collect();

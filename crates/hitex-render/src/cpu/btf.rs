@@ -10,7 +10,8 @@
 
 use super::raster::QuadShader;
 use crate::btf::{BtfFrame, BtfVertex, PreparedBtf};
-use glam::Vec3;
+use glam::{Vec3, Vec4};
+use hitex_core::btf::frames::{V3x4, angles4};
 use hitex_core::btf::layout::{FetchSink, ReadCounter};
 use hitex_core::btf::{AngleLerps, Codebook, angles};
 use hitex_core::texture::linear_to_srgb_u8;
@@ -95,6 +96,62 @@ impl<'a> BtfProgram<'a> {
         acc * self.exposure
     }
 
+    /// The four lanes of a quad in linear RGB: the same steps as
+    /// [`BtfProgram::shade_linear`], the per-pixel frame and both angle pairs
+    /// computed on SIMD lanes, the reads lane by lane. Lanes not in `live`
+    /// are left black.
+    pub fn shade_quad(&self, v: &[[f32; VARYINGS]; 4], live: u8) -> [Vec3; 4] {
+        let at = |i: usize| V3x4 {
+            x: Vec4::new(v[0][i], v[1][i], v[2][i], v[3][i]),
+            y: Vec4::new(v[0][i + 1], v[1][i + 1], v[2][i + 1], v[3][i + 1]),
+            z: Vec4::new(v[0][i + 2], v[1][i + 2], v[2][i + 2], v[3][i + 2]),
+        };
+        let p = at(0);
+        // per-pixel frame; the normal faces the viewer
+        let mut n = at(3).normalize_or(Vec3::Z);
+        let u = at(6).normalize_or(Vec3::X);
+        let w = at(9).normalize_or(Vec3::Y);
+        let back = n.dot(V3x4::splat(self.camera) - p).cmplt(Vec4::ZERO);
+        n = V3x4::select(back, -n, n);
+        // light below the surface: no light
+        let lit = n.dot(V3x4::splat(self.light) - p).cmpgt(Vec4::ZERO).bitmask() as u8 & live;
+        // view and light angles
+        let (tc, pc) = angles4(p, n, u, w, self.camera);
+        let (tl, pl) = angles4(p, n, u, w, self.light);
+        let g = &self.scene.grid;
+        let idx = &self.scene.index;
+        let cb: &Codebook = &self.scene.codebook;
+        let mut out = [Vec3::ZERO; 4];
+        for (lane, o) in out.iter_mut().enumerate() {
+            if lit & (1 << lane) == 0 {
+                continue;
+            }
+            let l = AngleLerps {
+                tc: g.lerp_theta(tc[lane]),
+                pc: g.lerp_phi(pc[lane]),
+                tl: g.lerp_theta(tl[lane]),
+                pl: g.lerp_phi(pl[lane]),
+            };
+            // index map: four texels around T, bilinear weights (4 index reads)
+            let (x0, x1, fx) = index_taps(v[lane][12], idx.width);
+            let (y0, y1, fy) = index_taps(v[lane][13], idx.height);
+            let plan = cb.plan(&l);
+            let mut a4 = Vec4::ZERO;
+            for (x, y, wgt) in [
+                (x0, y0, (1.0 - fx) * (1.0 - fy)),
+                (x1, y0, fx * (1.0 - fy)),
+                (x0, y1, (1.0 - fx) * fy),
+                (x1, y1, fx * fy),
+            ] {
+                let e = idx.get(x, y);
+                // hexa-linear over the angles through the layout's reads
+                a4 += cb.corner_planned_linear(&plan, e[0] as u32, e[1] as u32, &self.scene.linear) * wgt;
+            }
+            *o = a4.truncate() * self.exposure;
+        }
+        out
+    }
+
     /// Reads per fragment at these varyings (texture instructions, texels).
     pub fn count_reads(&self, v: &[f32; VARYINGS]) -> ReadCounter {
         let mut c = ReadCounter::default();
@@ -117,15 +174,8 @@ pub fn index_taps(t: f32, size: u32) -> (u32, u32, f32) {
 
 impl QuadShader<VARYINGS> for BtfProgram<'_> {
     fn shade(&self, _material: usize, v: &[[f32; VARYINGS]; 4], _w: [f32; 4], live: u8) -> [[u8; 4]; 4] {
-        let mut out = [[0u8; 4]; 4];
-        for (lane, o) in out.iter_mut().enumerate() {
-            if live & (1 << lane) == 0 {
-                continue;
-            }
-            let c = self.shade_linear(&v[lane], &mut ());
-            *o = [linear_to_srgb_u8(c.x), linear_to_srgb_u8(c.y), linear_to_srgb_u8(c.z), 255];
-        }
-        out
+        let c = self.shade_quad(v, live);
+        std::array::from_fn(|i| [linear_to_srgb_u8(c[i].x), linear_to_srgb_u8(c[i].y), linear_to_srgb_u8(c[i].z), 255])
     }
 }
 
