@@ -11,6 +11,7 @@
 pub mod btf;
 pub mod error;
 pub mod nurbs;
+pub mod residency;
 pub mod scene;
 pub mod terrain;
 pub mod texture;

@@ -10,6 +10,7 @@ pub mod btf_file;
 pub mod btf_images;
 pub mod dem;
 pub mod geotiff;
+pub mod gst;
 pub mod iges;
 pub mod image_io;
 pub mod models;
