@@ -8,6 +8,7 @@ pub mod image;
 pub mod procedural;
 pub mod pyramid;
 pub mod sampler;
+pub mod span;
 
 pub use image::{ColorSpace, Image, linear_to_srgb, linear_to_srgb_u8, srgb_to_linear, srgb_u8_to_linear};
 pub use pyramid::MipPyramid;
