@@ -6,6 +6,7 @@ mod btf_cmd;
 mod demo;
 mod nurbs_cmd;
 mod terrain_cmd;
+mod terrain_store_cmd;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use hitex_core::scene::RenderMode;

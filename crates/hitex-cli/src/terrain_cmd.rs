@@ -4,6 +4,7 @@ use crate::{AnyRenderer, Backend, CliError, parse_size, save};
 use clap::{Args, Subcommand};
 use glam::{Mat4, Vec2, Vec3};
 use hitex_core::scene::{Camera, Light, Material, Object, RenderMode, Scene};
+use hitex_core::texture::procedural::Pattern;
 use hitex_core::texture::{ColorSpace, Filter, Image, MipPyramid, SamplerOptions, Wrap};
 use hitex_io::dem::load_elevation;
 use hitex_io::geotiff::{GeoRaster, fill_holes, load_geotiff};
@@ -17,6 +18,10 @@ use std::time::Instant;
 pub enum TerrainCommand {
     /// Render a DEM draped with co-registered imagery (per-pixel trilinear MIP mapping).
     Render(RenderArgs),
+    /// Build a GST pyramid store (TMS layout) from imagery, tile by tile.
+    Build(crate::terrain_store_cmd::BuildArgs),
+    /// Fly over a store through the resident-map cache, writing PNG frames.
+    Fly(crate::terrain_store_cmd::FlyArgs),
     /// Maps of each MIP level the active area needs (eq. (5)–(7)) and their memory.
     ActiveArea {
         /// Horizontal field of view, degrees.
@@ -32,6 +37,51 @@ pub enum TerrainCommand {
         #[arg(long, default_value_t = 9)]
         levels: u32,
     },
+    /// Fly over a texture and compare per-pixel trilinear with span-parallel
+    /// mapping from 3×3 / 4×4 interleaved banks (eq. (8)–(10)).
+    Spans(SpansArgs),
+}
+
+/// Arguments of `hitex terrain spans`.
+#[derive(Args)]
+pub struct SpansArgs {
+    /// Ground texture: PNG/JPEG, or GeoTIFF (.tif/.tiff, bands from --bands);
+    /// default: a procedural pattern.
+    #[arg(long)]
+    pub image: Option<PathBuf>,
+    /// GeoTIFF bands for red, green, blue (1-based).
+    #[arg(long, default_value = "3,2,1")]
+    pub bands: String,
+    /// Procedural pattern when no --image is given: checker, uv-grid, bricks.
+    #[arg(long, default_value = "bricks")]
+    pub pattern: String,
+    /// Side of the procedural texture, texels.
+    #[arg(long, default_value_t = 1024)]
+    pub texture_size: u32,
+    /// Eye height above the ground in level-0 texels (default: 0.3 × the texture's longer side).
+    #[arg(long)]
+    pub altitude: Option<f64>,
+    /// Pitch below the horizon, degrees.
+    #[arg(long, default_value_t = 30.0)]
+    pub pitch: f64,
+    /// Heading, degrees clockwise from north.
+    #[arg(long, default_value_t = 30.0)]
+    pub heading: f64,
+    /// Horizontal field of view, degrees.
+    #[arg(long, default_value_t = 45.0)]
+    pub fov: f64,
+    /// Frames along the straight path.
+    #[arg(long, default_value_t = 8)]
+    pub frames: u32,
+    /// Ground distance flown per frame in texels (default: altitude / 4).
+    #[arg(long)]
+    pub step: Option<f64>,
+    /// Frame size, WIDTHxHEIGHT.
+    #[arg(long, value_parser = parse_size, default_value = "1024x768")]
+    pub size: (u32, u32),
+    /// Output PNG: trilinear | span 3×3 | span 4×4 | |trilinear − span 3×3| × 8 (last frame).
+    #[arg(short, long)]
+    pub output: PathBuf,
 }
 
 /// Arguments of `hitex terrain render`.
@@ -74,7 +124,7 @@ pub struct RenderArgs {
 }
 
 /// Band values stretched from their 2nd to 98th percentile into an sRGB image.
-fn stretched(img: &GeoRaster, bands: [usize; 3]) -> Result<Image, CliError> {
+pub(crate) fn stretched(img: &GeoRaster, bands: [usize; 3]) -> Result<Image, CliError> {
     let mut lo_hi = [(0.0f32, 1.0f32); 3];
     for (k, &b) in bands.iter().enumerate() {
         let mut v: Vec<f32> = (0..img.width * img.height)
@@ -96,6 +146,62 @@ fn stretched(img: &GeoRaster, bands: [usize; 3]) -> Result<Image, CliError> {
         [c(0), c(1), c(2), 255]
     })
     .map_err(|e| CliError::Input(e.to_string()))
+}
+
+/// `--bands "3,2,1"` as 0-based indices.
+fn parse_band_list(s: &str) -> Result<[usize; 3], CliError> {
+    let v: Vec<usize> = s
+        .split(',')
+        .map(|s| s.trim().parse::<usize>().ok().filter(|&b| b >= 1).map(|b| b - 1))
+        .collect::<Option<Vec<_>>>()
+        .filter(|v| v.len() == 3)
+        .ok_or_else(|| CliError::Input(format!("--bands '{s}' is not three 1-based band numbers")))?;
+    Ok([v[0], v[1], v[2]])
+}
+
+fn check_bands(bands: [usize; 3], img: &GeoRaster, path: &std::path::Path) -> Result<[usize; 3], CliError> {
+    if let Some(b) = bands.iter().find(|&&b| b >= img.bands) {
+        return Err(CliError::Input(format!(
+            "{}: band {} requested, the image has {}",
+            path.display(),
+            b + 1,
+            img.bands
+        )));
+    }
+    Ok(bands)
+}
+
+/// `--bands` checked against the image: 0-based indices.
+pub(crate) fn parse_bands(s: &str, img: &GeoRaster, path: &std::path::Path) -> Result<[usize; 3], CliError> {
+    check_bands(parse_band_list(s)?, img, path)
+}
+
+/// The DEM and the imagery must share their CRS and overlap.
+pub(crate) fn check_coregistered(
+    dem: &GeoRaster,
+    img: &GeoRaster,
+    dem_path: &std::path::Path,
+    img_path: &std::path::Path,
+) -> Result<(), CliError> {
+    if !dem.same_crs(img) {
+        return Err(CliError::Input(format!(
+            "{} is in {} but {} is in {}: reproject one of them first",
+            dem_path.display(),
+            dem.crs_name(),
+            img_path.display(),
+            img.crs_name()
+        )));
+    }
+    let (a0, a1, b0, b1) = dem.extent();
+    let (c0, c1, d0, d1) = img.extent();
+    if a1 <= c0 || c1 <= a0 || b1 <= d0 || d1 <= b0 {
+        return Err(CliError::Input(format!(
+            "{} and {} do not overlap (x {a0:.0}..{a1:.0} vs {c0:.0}..{c1:.0}, y {b0:.0}..{b1:.0} vs {d0:.0}..{d1:.0})",
+            dem_path.display(),
+            img_path.display()
+        )));
+    }
+    Ok(())
 }
 
 /// Elevation colours (green lowlands, brown hills, white peaks) as a texture.
@@ -123,13 +229,7 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     if !(1.0..=89.0).contains(&a.pitch) || a.altitude <= 0.0 {
         return Err(CliError::Input("--pitch must be in 1..=89 degrees and --altitude positive".into()));
     }
-    let bands: Vec<usize> = a
-        .bands
-        .split(',')
-        .map(|s| s.trim().parse::<usize>().ok().filter(|&b| b >= 1).map(|b| b - 1))
-        .collect::<Option<Vec<_>>>()
-        .filter(|v| v.len() == 3)
-        .ok_or_else(|| CliError::Input(format!("--bands '{}' is not three 1-based band numbers", a.bands)))?;
+    let bands = parse_band_list(&a.bands)?;
     let mut dem = load_elevation(&a.dem)?;
     let filled = fill_holes(&mut dem);
     if filled > 0 {
@@ -139,24 +239,9 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     let (pyramid, image_extent) = match &a.image {
         Some(path) => {
             let img = load_geotiff(path)?;
-            if let Some(b) = bands.iter().find(|&&b| b >= img.bands) {
-                return Err(CliError::Input(format!(
-                    "{}: band {} requested, the image has {}",
-                    path.display(),
-                    b + 1,
-                    img.bands
-                )));
-            }
-            if !dem.same_crs(&img) {
-                return Err(CliError::Input(format!(
-                    "{} is in {} but {} is in {}: reproject one of them first",
-                    a.dem.display(),
-                    dem.crs_name(),
-                    path.display(),
-                    img.crs_name()
-                )));
-            }
-            (MipPyramid::build(stretched(&img, [bands[0], bands[1], bands[2]])?), img.extent())
+            let bands = check_bands(bands, &img, path)?;
+            check_coregistered(&dem, &img, &a.dem, path)?;
+            (MipPyramid::build(stretched(&img, bands)?), img.extent())
         }
         None => (MipPyramid::build(hypsometric(&heights, dem.width, dem.height)?), dem.extent()),
     };
@@ -225,10 +310,210 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     Ok(())
 }
 
+/// The flight texture and its wrap mode (imagery mirrors, patterns repeat).
+fn spans_texture(a: &SpansArgs) -> Result<(MipPyramid, Wrap, String), CliError> {
+    match &a.image {
+        Some(path) => {
+            let ext = path.extension().and_then(|e| e.to_str()).unwrap_or_default().to_ascii_lowercase();
+            let img = if ext == "tif" || ext == "tiff" {
+                let raster = load_geotiff(path)?;
+                let bands = parse_bands(&a.bands, &raster, path)?;
+                stretched(&raster, bands)?
+            } else {
+                hitex_io::load_image(path, ColorSpace::Srgb)?
+            };
+            let name = format!("{} ({}x{})", path.display(), img.width(), img.height());
+            Ok((MipPyramid::build(img), Wrap::Mirror, name))
+        }
+        None => {
+            let p = Pattern::from_name(&a.pattern).ok_or_else(|| {
+                let names: Vec<&str> = Pattern::ALL.iter().map(|p| p.name()).collect();
+                CliError::Input(format!("--pattern '{}' is not one of {}", a.pattern, names.join(", ")))
+            })?;
+            if !(4..=8192).contains(&a.texture_size) {
+                return Err(CliError::Input("--texture-size must be in 4..=8192".into()));
+            }
+            let img = p.render(a.texture_size).map_err(|e| CliError::Input(e.to_string()))?;
+            Ok((MipPyramid::build(img), Wrap::Repeat, format!("procedural {} {}²", p.name(), a.texture_size)))
+        }
+    }
+}
+
+/// `hitex terrain spans`: per case the median time per frame, PSNR and SSIM
+/// against per-pixel trilinear, bank conflicts, and the memory of each design.
+fn spans(a: SpansArgs) -> Result<(), CliError> {
+    use hitex_core::texture::span::{
+        BankModel, FlightView, RgbaFrame, SpanFilter, SpanOptions, SpanScheme, memory_for_pyramid, psnr, render_spans,
+        render_trilinear, ssim,
+    };
+    for (name, v) in [("--pitch", a.pitch), ("--heading", a.heading), ("--fov", a.fov)] {
+        if !v.is_finite() {
+            return Err(CliError::Input(format!("{name} must be finite")));
+        }
+    }
+    if !(1.0..=90.0).contains(&a.pitch) || !(1.0..=170.0).contains(&a.fov) {
+        return Err(CliError::Input("--pitch must be in 1..=90 and --fov in 1..=170 degrees".into()));
+    }
+    if a.frames == 0 || a.frames > 10_000 {
+        return Err(CliError::Input("--frames must be in 1..=10000".into()));
+    }
+    let (pyr, wrap, name) = spans_texture(&a)?;
+    let altitude = a.altitude.unwrap_or(0.3 * pyr.width().max(pyr.height()) as f64);
+    let step = a.step.unwrap_or(altitude / 4.0);
+    if !altitude.is_finite() || altitude <= 0.0 || !step.is_finite() {
+        return Err(CliError::Input("--altitude must be positive and --step finite".into()));
+    }
+    let _ = pyr.linear_level(0); // decode once, outside the timings
+    let (w, h) = a.size;
+    let hd = a.heading.to_radians();
+    let start = [pyr.width() as f64 / 2.0, pyr.height() as f64 / 2.0];
+    let views: Vec<FlightView> = (0..a.frames)
+        .map(|i| FlightView {
+            position: [start[0] + hd.sin() * step * i as f64, start[1] - hd.cos() * step * i as f64],
+            altitude,
+            pitch_deg: a.pitch,
+            heading_deg: a.heading,
+            fov_deg: a.fov,
+            width: w,
+            height: h,
+        })
+        .collect();
+    println!(
+        "flight over {name}: {} frames {w}x{h}, altitude {altitude:.1} texels, pitch {}°, heading {}°, FOV {}°, {} levels",
+        a.frames,
+        a.pitch,
+        a.heading,
+        a.fov,
+        pyr.level_count()
+    );
+    // per-pixel trilinear: the reference
+    let mut times = Vec::new();
+    let mut reference: Vec<RgbaFrame> = Vec::new();
+    for v in &views {
+        let t = Instant::now();
+        reference.push(render_trilinear(&pyr, v, wrap));
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    println!(
+        "{:<10} {:>9} {:>10} {:>8} {:>10} {:>12} {:>10} {:>8}",
+        "case", "ms/frame", "PSNR dB", "SSIM", "conflicts", "accesses", "words", "mean λ"
+    );
+    println!(
+        "{:<10} {:>9.2} {:>10} {:>8} {:>10} {:>12} {:>10} {:>8}",
+        "trilinear",
+        crate::bench::median(&mut times),
+        "-",
+        "-",
+        "-",
+        "-",
+        "-",
+        "-"
+    );
+    let cases = [
+        ("span3", SpanScheme::Banks3x3, SpanFilter::Bilinear),
+        ("span4", SpanScheme::Banks4x4, SpanFilter::Bilinear),
+        ("bicubic3", SpanScheme::Banks3x3, SpanFilter::Bicubic),
+        ("bicubic4", SpanScheme::Banks4x4, SpanFilter::Bicubic),
+    ];
+    let mut total_conflicts = 0u64;
+    let mut last: Vec<RgbaFrame> = Vec::new();
+    for (label, scheme, filter) in cases {
+        let opts = SpanOptions { scheme, filter, wrap, level_shift: 0 };
+        let mut banks = BankModel::new(scheme);
+        let (mut times, mut p, mut s) = (Vec::new(), 0.0, 0.0);
+        let mut frame = None;
+        for (v, r) in views.iter().zip(&reference) {
+            let t = Instant::now();
+            let f = render_spans(&pyr, v, &opts, &mut banks);
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+            p += psnr(r, &f);
+            s += ssim(r, &f);
+            frame = Some(f);
+        }
+        let n = views.len() as f64;
+        total_conflicts += banks.conflicts;
+        println!(
+            "{label:<10} {:>9.2} {:>10.2} {:>8.4} {:>10} {:>12} {:>10} {:>8.2}",
+            crate::bench::median(&mut times),
+            p / n,
+            s / n,
+            banks.conflicts,
+            banks.accesses,
+            banks.words,
+            banks.mean_level()
+        );
+        if banks.guard_raises > 0 {
+            println!("  ({} spans raised by the rounding guard)", banks.guard_raises);
+        }
+        if filter == SpanFilter::Bilinear {
+            last.extend(frame);
+        }
+    }
+    println!("total bank conflicts: {total_conflicts}");
+    // the rule is tight: one level finer (on 3×3 banks: eq. (9) taken literally) conflicts
+    for scheme in [SpanScheme::Banks3x3, SpanScheme::Banks4x4] {
+        let opts = SpanOptions { scheme, filter: SpanFilter::Bilinear, wrap, level_shift: -1 };
+        let mut banks = BankModel::new(scheme);
+        let _ = render_spans(&pyr, &views[0], &opts, &mut banks);
+        println!(
+            "  check, {} banks one level finer than the rule (frame 1): {} conflicts, {} of {} accesses conflicted",
+            scheme.name(),
+            banks.conflicts,
+            banks.conflicted_accesses,
+            banks.accesses
+        );
+    }
+    let m3 = memory_for_pyramid(&pyr, SpanScheme::Banks3x3);
+    let m4 = memory_for_pyramid(&pyr, SpanScheme::Banks4x4);
+    let mib = |b: u64| b as f64 / 1_048_576.0;
+    println!("texture memory ({} texels in {} levels, RGBA8):", pyr.texel_count(), pyr.level_count());
+    println!(
+        "  conventional: {} pixel processors × full copy, {} banks: {:.2} MiB",
+        m3.pixel_processors,
+        m3.conventional_banks,
+        mib(m3.conventional_bytes)
+    );
+    for (label, m) in [("span 3x3", m3), ("span 4x4", m4)] {
+        println!(
+            "  {label}: one shared copy in {} banks: {:.2} MiB ({:.4} of conventional; {:.4} without bank padding)",
+            m.span_banks,
+            mib(m.span_bytes),
+            m.ratio(),
+            m.unpadded_ratio()
+        );
+    }
+    // trilinear | span 3×3 | span 4×4 | |trilinear − span 3×3| × 8, last frame
+    let (Some(tri), [s3, s4]) = (reference.last(), last.as_slice()) else {
+        return Err(CliError::Internal("no frame rendered".into()));
+    };
+    let (wu, hu) = (w as usize, h as usize);
+    let mut out = vec![0u8; wu * 4 * hu * 4];
+    for y in 0..hu {
+        for x in 0..wu {
+            let i = (y * wu + x) * 4;
+            let row = y * wu * 4;
+            let diff: [u8; 4] = std::array::from_fn(|c| {
+                if c == 3 { 255 } else { (tri.rgba[i + c].abs_diff(s3.rgba[i + c]) as u32 * 8).min(255) as u8 }
+            });
+            for (k, src) in [&tri.rgba[i..i + 4], &s3.rgba[i..i + 4], &s4.rgba[i..i + 4], &diff[..]].iter().enumerate()
+            {
+                let o = (row + k * wu + x) * 4;
+                out[o..o + 4].copy_from_slice(src);
+            }
+        }
+    }
+    hitex_io::save_png(&a.output, w * 4, h, &out)?;
+    println!("wrote {} (trilinear | span 3x3 | span 4x4 | |trilinear − span 3x3| × 8)", a.output.display());
+    Ok(())
+}
+
 /// Runs a `hitex terrain` subcommand.
 pub fn run(cmd: TerrainCommand) -> Result<(), CliError> {
     match cmd {
         TerrainCommand::Render(a) => render(a),
+        TerrainCommand::Build(a) => crate::terrain_store_cmd::build(a),
+        TerrainCommand::Fly(a) => crate::terrain_store_cmd::fly(a),
+        TerrainCommand::Spans(a) => spans(a),
         TerrainCommand::ActiveArea { fov, width, map, levels } => {
             let a = hitex_core::terrain::active_area(fov, width, map, levels)
                 .map_err(|e| CliError::Input(e.to_string()))?;

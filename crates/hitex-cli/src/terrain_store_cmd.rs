@@ -1,0 +1,510 @@
+//! `hitex terrain build` and `hitex terrain fly`: GST pyramids on disk and
+//! flights over them through the resident-map cache.
+
+use crate::{CliError, parse_size, save};
+use clap::Args;
+use glam::{DVec2, DVec3};
+use hitex_core::residency::{MapKey, ResidentMaps, View, active_maps};
+use hitex_core::texture::image::decode_table;
+use hitex_core::texture::{ColorSpace, linear_to_srgb_u8};
+use hitex_io::gst::{
+    BuildOptions, MemorySource, ProceduralSource, StoreMeta, TILE, TileSource, build_store, open_store, read_tile,
+};
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Arguments of `hitex terrain build`.
+#[derive(Args)]
+pub struct BuildArgs {
+    /// Imagery: a GeoTIFF (bands chosen with --bands, stretched 2–98 %).
+    #[arg(long, conflicts_with = "procedural")]
+    pub image: Option<PathBuf>,
+    /// Image bands for red, green, blue (1-based).
+    #[arg(long, default_value = "3,2,1")]
+    pub bands: String,
+    /// Elevation model to check against the imagery (same CRS, overlapping) and keep in the store.
+    #[arg(long)]
+    pub dem: Option<PathBuf>,
+    /// Instead of an image: procedural imagery of WIDTHxHEIGHT texels, generated on the fly.
+    #[arg(long, value_parser = parse_big_size)]
+    pub procedural: Option<(u32, u32)>,
+    /// Output store (a TMS directory).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// This process's share of the work, INDEX/COUNT (e.g. 0/4).
+    #[arg(long, value_parser = parse_shard, default_value = "0/1")]
+    pub shard: (u32, u32),
+}
+
+fn parse_big_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT"))?;
+    let p = |v: &str| v.trim().parse::<u32>().map_err(|_| format!("'{v}' is not a positive integer"));
+    let (w, h) = (p(w)?, p(h)?);
+    if w == 0 || h == 0 || w > hitex_io::gst::MAX_SOURCE_SIDE || h > hitex_io::gst::MAX_SOURCE_SIDE {
+        return Err(format!("{w}x{h} is outside 1..={}", hitex_io::gst::MAX_SOURCE_SIDE));
+    }
+    Ok((w, h))
+}
+
+fn parse_shard(s: &str) -> Result<(u32, u32), String> {
+    let (i, n) = s.split_once('/').ok_or_else(|| format!("'{s}' is not INDEX/COUNT"))?;
+    let i: u32 = i.trim().parse().map_err(|_| format!("'{i}' is not an index"))?;
+    let n: u32 = n.trim().parse().map_err(|_| format!("'{n}' is not a count"))?;
+    if n == 0 || i >= n {
+        return Err(format!("shard {i}/{n}: the index must be below the count"));
+    }
+    Ok((i, n))
+}
+
+/// `hitex terrain build`.
+pub fn build(a: BuildArgs) -> Result<(), CliError> {
+    let t = Instant::now();
+    let (source, meta): (Box<dyn TileSource>, StoreMeta) = match (&a.image, a.procedural) {
+        (Some(path), _) => {
+            let img = hitex_io::geotiff::load_geotiff(path)?;
+            if let Some(d) = &a.dem {
+                let dem = hitex_io::dem::load_elevation(d)?;
+                crate::terrain_cmd::check_coregistered(&dem, &img, d, path)?;
+            }
+            let bands = crate::terrain_cmd::parse_bands(&a.bands, &img, path)?;
+            let rgb = crate::terrain_cmd::stretched(&img, bands)?;
+            let name = format!("{} bands {}", path.display(), a.bands);
+            let meta = StoreMeta::for_source(
+                img.width,
+                img.height,
+                img.origin,
+                img.pixel,
+                &img.epsg.map_or_else(|| img.crs_name(), |e| format!("EPSG:{e}")),
+                &name,
+            );
+            let src = MemorySource { width: img.width, height: img.height, rgba: rgb.bytes().to_vec(), name };
+            (Box::new(src), meta)
+        }
+        (None, Some((w, h))) => {
+            let src = ProceduralSource { width: w, height: h, seed: 1 };
+            let meta = StoreMeta::for_source(w, h, [0.0, 0.0], [1.0, 1.0], "", &src.describe());
+            (Box::new(src), meta)
+        }
+        (None, None) => return Err(CliError::Input("give --image IMAGE.tif or --procedural WIDTHxHEIGHT".into())),
+    };
+    let pb = ProgressBar::new(meta.total_tiles());
+    pb.set_style(
+        ProgressStyle::with_template("{prefix:>8} [{bar:30}] {pos}/{len} maps {elapsed} (eta {eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    pb.set_prefix("build");
+    let report = build_store(source.as_ref(), &meta, &a.output, BuildOptions { shard: a.shard }, &|done, total| {
+        pb.set_length(total);
+        pb.set_position(done);
+    })?;
+    pb.finish_and_clear();
+    if let Some(d) = &a.dem {
+        let ext = d.extension().and_then(|e| e.to_str()).unwrap_or("tif");
+        let bytes = std::fs::read(d).map_err(|source| hitex_io::IoError::Read { path: d.clone(), source })?;
+        hitex_io::write_atomic(&a.output.join(format!("dem.{ext}")), &bytes)?;
+    }
+    println!(
+        "{}: {} levels of {TILE}×{TILE} maps from {}; shard {}/{} wrote {} maps ({} left to other shards{}) in {:.1} s",
+        a.output.display(),
+        report.levels,
+        meta.source,
+        a.shard.0,
+        a.shard.1,
+        report.written,
+        report.other_shards,
+        if report.built_top { "; levels above the split built" } else { "" },
+        t.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// Arguments of `hitex terrain fly`.
+#[derive(Args)]
+pub struct FlyArgs {
+    /// The store (built by `hitex terrain build`).
+    pub store: PathBuf,
+    /// Flight path TOML: `[[key]]` tables with t, x, y (fractions of the extent), altitude (m),
+    /// pitch (degrees from the nadir), heading (degrees from north); default: an orbit.
+    #[arg(long)]
+    pub path: Option<PathBuf>,
+    /// Frames to render.
+    #[arg(long, default_value_t = 24)]
+    pub frames: u32,
+    /// Frame size.
+    #[arg(long, value_parser = parse_size, default_value = "1024x768")]
+    pub size: (u32, u32),
+    /// Resident-map budget (the paper's setting needs 324).
+    #[arg(long, default_value_t = 400)]
+    pub budget: usize,
+    /// Orbit altitude in metres (default: a tenth of the extent).
+    #[arg(long)]
+    pub altitude: Option<f64>,
+    /// Orbit pitch from the nadir, degrees.
+    #[arg(long, default_value_t = 60.0)]
+    pub pitch: f64,
+    /// Horizontal field of view, degrees.
+    #[arg(long, default_value_t = 45.0)]
+    pub fov: f64,
+    /// Render each frame only after its maps have loaded (deterministic frames).
+    #[arg(long)]
+    pub wait: bool,
+    /// Output folder for frame PNGs.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+/// One key of a flight path.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PathKey {
+    /// Time (any unit; frames are spread evenly over the keys' range).
+    pub t: f64,
+    /// East position as a fraction of the extent.
+    pub x: f64,
+    /// South position as a fraction of the extent.
+    pub y: f64,
+    /// Altitude above the ground, metres.
+    pub altitude: f64,
+    /// Pitch from the nadir, degrees.
+    pub pitch: f64,
+    /// Heading, degrees clockwise from north.
+    pub heading: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PathFile {
+    key: Vec<PathKey>,
+}
+
+fn load_path(path: &Path) -> Result<Vec<PathKey>, CliError> {
+    let text = std::fs::read_to_string(path).map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?;
+    let f: PathFile = toml::from_str(&text).map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?;
+    let mut keys = f.key;
+    if keys.is_empty() {
+        return Err(CliError::Input(format!("{}: no [[key]] tables", path.display())));
+    }
+    for (i, k) in keys.iter().enumerate() {
+        let vals = [k.t, k.x, k.y, k.altitude, k.pitch, k.heading];
+        if vals.iter().any(|v| !v.is_finite()) {
+            return Err(CliError::Input(format!("{}: key[{i}] has a value that is not finite", path.display())));
+        }
+        if k.altitude <= 0.0 {
+            return Err(CliError::Input(format!(
+                "{}: key[{i}].altitude = {}: the camera is below the ground",
+                path.display(),
+                k.altitude
+            )));
+        }
+        if !(0.0..90.0).contains(&k.pitch) {
+            return Err(CliError::Input(format!(
+                "{}: key[{i}].pitch = {}° must be in [0, 90) from the nadir (90 looks at the horizon)",
+                path.display(),
+                k.pitch
+            )));
+        }
+    }
+    keys.sort_by(|a, b| a.t.total_cmp(&b.t));
+    Ok(keys)
+}
+
+fn at_time(keys: &[PathKey], t: f64) -> PathKey {
+    let i = keys.partition_point(|k| k.t <= t).clamp(1, keys.len().max(1)) - 1;
+    let (a, b) = (keys[i], keys[(i + 1).min(keys.len() - 1)]);
+    let s = if b.t > a.t { ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0) } else { 0.0 };
+    let l = |p: f64, q: f64| p + (q - p) * s;
+    PathKey {
+        t,
+        x: l(a.x, b.x),
+        y: l(a.y, b.y),
+        altitude: l(a.altitude, b.altitude),
+        pitch: l(a.pitch, b.pitch),
+        heading: l(a.heading, b.heading),
+    }
+}
+
+/// A level's window of the active area: its first map column and row, and
+/// per slot the level of the resident map that serves it and its texels.
+type Window = (i64, i64, Vec<Option<(u32, Arc<Vec<u8>>)>>);
+
+/// The resolved maps of one frame: per level, the window of the active area.
+struct FrameMaps {
+    levels: u32,
+    per_side: u32,
+    windows: Vec<Window>,
+    lut: &'static [f32; 256],
+}
+
+impl FrameMaps {
+    fn new(cache: &ResidentMaps, meta: &StoreMeta, eye: DVec2, per_side: u32) -> Self {
+        let windows = (0..meta.levels)
+            .map(|z| {
+                let span = TILE as f64 * meta.scale(z) as f64;
+                let (cols, rows) = meta.data_tiles(z);
+                let half = per_side as f64 / 2.0;
+                let (x0, y0) = ((eye.x / span - half).floor() as i64, (eye.y / span - half).floor() as i64);
+                let slots = (0..per_side as i64 * per_side as i64)
+                    .map(|k| {
+                        let (x, y) = (x0 + k % per_side as i64, y0 + k / per_side as i64);
+                        if x < 0 || y < 0 || x >= cols as i64 || y >= rows as i64 {
+                            return None;
+                        }
+                        let (found, t) = cache.lookup(MapKey { z, x: x as u32, y: y as u32 });
+                        Some((found.z, t))
+                    })
+                    .collect();
+                (x0, y0, slots)
+            })
+            .collect();
+        Self { levels: meta.levels, per_side, windows, lut: decode_table(ColorSpace::Srgb) }
+    }
+
+    /// Linear RGBA of texel (tx, ty) of level z; transparent outside the data.
+    fn texel(&self, z: u32, tx: i64, ty: i64) -> [f32; 4] {
+        let mut z = z;
+        let (mut tx, mut ty) = (tx, ty);
+        loop {
+            let (x0, y0, slots) = &self.windows[z as usize];
+            let (mx, my) = (tx.div_euclid(TILE as i64) - x0, ty.div_euclid(TILE as i64) - y0);
+            let inside = mx >= 0 && my >= 0 && mx < self.per_side as i64 && my < self.per_side as i64;
+            if inside {
+                let Some((found, t)) = &slots[(my * self.per_side as i64 + mx) as usize] else {
+                    return [0.0; 4];
+                };
+                // a coarser resident map stands in: its texel containing this one
+                let k = z - found;
+                let (fx, fy) = (tx >> k, ty >> k);
+                let (lx, ly) = (fx.rem_euclid(TILE as i64) as usize, fy.rem_euclid(TILE as i64) as usize);
+                let i = (ly * TILE as usize + lx) * 4;
+                if i + 3 >= t.len() {
+                    return [0.0; 4];
+                }
+                return [
+                    self.lut[t[i] as usize],
+                    self.lut[t[i + 1] as usize],
+                    self.lut[t[i + 2] as usize],
+                    t[i + 3] as f32 / 255.0,
+                ];
+            }
+            // outside the active area: the next coarser level covers it
+            if z == 0 {
+                return [0.0; 4];
+            }
+            z -= 1;
+            tx >>= 1;
+            ty >>= 1;
+        }
+    }
+
+    /// Trilinear sample at finest-texel position `p` with footprint `foot`
+    /// (finest texels per pixel, eq. (2)).
+    fn sample(&self, p: DVec2, foot: f64) -> [f32; 4] {
+        let lambda = foot.max(1e-9).log2();
+        let zf = (self.levels - 1) as f64 - lambda;
+        let zf = zf.clamp(0.0, (self.levels - 1) as f64);
+        let z0 = zf.floor() as u32;
+        let z1 = (z0 + 1).min(self.levels - 1);
+        let t = (zf - z0 as f64) as f32;
+        let a = self.bilinear(z0, p);
+        if t <= 0.0 || z1 == z0 {
+            return a;
+        }
+        let b = self.bilinear(z1, p);
+        std::array::from_fn(|k| a[k] + (b[k] - a[k]) * t)
+    }
+
+    fn bilinear(&self, z: u32, p: DVec2) -> [f32; 4] {
+        let s = (1u64 << (self.levels - 1 - z)) as f64;
+        let (x, y) = (p.x / s - 0.5, p.y / s - 0.5);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
+        let (ix, iy) = (x0 as i64, y0 as i64);
+        let c = [
+            self.texel(z, ix, iy),
+            self.texel(z, ix + 1, iy),
+            self.texel(z, ix, iy + 1),
+            self.texel(z, ix + 1, iy + 1),
+        ];
+        std::array::from_fn(|k| {
+            let top = c[0][k] + (c[1][k] - c[0][k]) * fx;
+            let bot = c[2][k] + (c[3][k] - c[2][k]) * fx;
+            top + (bot - top) * fy
+        })
+    }
+}
+
+/// A pinhole camera over flat ground: eye (finest texels, z up), its axes,
+/// tan of half the horizontal field of view, aspect and size.
+struct Eye {
+    pos: DVec3,
+    fwd: DVec3,
+    right: DVec3,
+    up: DVec3,
+    tan_h: f64,
+    aspect: f64,
+    size: (u32, u32),
+}
+
+impl Eye {
+    /// The ground point (finest texels) seen through pixel position (px, py),
+    /// or None at and above the horizon.
+    fn ground_hit(&self, px: f64, py: f64) -> Option<DVec2> {
+        let (w, h) = self.size;
+        let sx = (2.0 * px / w as f64 - 1.0) * self.tan_h;
+        let sy = (1.0 - 2.0 * py / h as f64) * self.tan_h / self.aspect;
+        let d = self.fwd + self.right * sx + self.up * sy;
+        if d.z >= -1e-9 {
+            return None;
+        }
+        let t = -self.pos.z / d.z;
+        let g = DVec2::new(self.pos.x + d.x * t, self.pos.y + d.y * t);
+        g.is_finite().then_some(g)
+    }
+}
+
+/// `hitex terrain fly`.
+pub fn fly(a: FlyArgs) -> Result<(), CliError> {
+    let meta = open_store(&a.store)?;
+    std::fs::create_dir_all(&a.output)
+        .map_err(|e| CliError::Internal(format!("cannot create {}: {e}", a.output.display())))?;
+    let (w, h) = a.size;
+    let extent = DVec2::new(meta.width as f64, meta.height as f64);
+    let metres = meta.pixel[0];
+    let keys = match &a.path {
+        Some(p) => load_path(p)?,
+        None => {
+            let alt = a.altitude.unwrap_or(extent.x.max(extent.y) * metres / 10.0);
+            if !(alt.is_finite() && alt > 0.0) {
+                return Err(CliError::Input(format!("--altitude {alt}: the camera is below the ground")));
+            }
+            if !(0.0..90.0).contains(&a.pitch) {
+                return Err(CliError::Input(format!("--pitch {}° must be in [0, 90) from the nadir", a.pitch)));
+            }
+            // an orbit round the centre, looking inwards
+            (0..=16)
+                .map(|i| {
+                    let ang = i as f64 / 16.0 * std::f64::consts::TAU;
+                    PathKey {
+                        t: i as f64,
+                        x: 0.5 - 0.3 * ang.sin(),
+                        y: 0.5 + 0.3 * ang.cos(),
+                        altitude: alt,
+                        pitch: a.pitch,
+                        heading: ang.to_degrees(),
+                    }
+                })
+                .collect()
+        }
+    };
+    let per_side = hitex_core::terrain::active_area(a.fov, w, TILE, meta.levels.max(1))
+        .map_err(|e| CliError::Input(e.to_string()))?
+        .first()
+        .map_or(6, |l| l.per_side);
+    let root = a.store.clone();
+    let m2 = meta.clone();
+    let loader: Arc<hitex_core::residency::Loader> =
+        Arc::new(move |k: MapKey| read_tile(&m2, &root, k.z, k.x, k.y).map_err(|e| e.to_string()));
+    let mut cache = ResidentMaps::new(a.budget, loader).map_err(CliError::Input)?;
+    let (t0, t1) = (keys[0].t, keys[keys.len() - 1].t);
+    let tan_h = (a.fov.to_radians() / 2.0).tan();
+    let aspect = w as f64 / h as f64;
+    let mut times = Vec::new();
+    let mut peak = (0usize, 0usize);
+    println!(
+        "flying over {} ({} levels, {}x{} texels) at {w}x{h}, budget {} maps:",
+        a.store.display(),
+        meta.levels,
+        meta.width,
+        meta.height,
+        a.budget
+    );
+    println!(
+        "{:>6} {:>9} {:>7} {:>9} {:>9} {:>8} {:>7} {:>10}",
+        "frame", "ms", "needed", "resident", "requested", "missing", "failed", "memory"
+    );
+    for f in 0..a.frames.max(1) {
+        let t = if a.frames > 1 { t0 + (t1 - t0) * f as f64 / (a.frames - 1) as f64 } else { t0 };
+        let k = at_time(&keys, t);
+        let mut start = Instant::now();
+        let alt = k.altitude / metres;
+        let eye = DVec3::new(k.x * extent.x, k.y * extent.y, alt);
+        let (th, hd) = (k.pitch.to_radians(), k.heading.to_radians());
+        // x east, y south, z up; heading clockwise from north (−y)
+        let fwd = DVec3::new(th.sin() * hd.sin(), -th.sin() * hd.cos(), -th.cos());
+        let right = DVec3::new(hd.cos(), hd.sin(), 0.0);
+        let up = fwd.cross(right).normalize();
+        let cam = Eye { pos: eye, fwd, right, up, tan_h, aspect, size: (w, h) };
+        let needed = active_maps(
+            meta.levels,
+            TILE,
+            |z| meta.data_tiles(z),
+            [eye.x, eye.y],
+            alt,
+            View { fov_deg: a.fov, pixels: w, per_side },
+        );
+        let mut stats = cache.begin_frame(&needed);
+        if a.wait {
+            // loading is the background thread's work: waiting for it is not frame time
+            let waited = Instant::now();
+            cache.wait_pending(Duration::from_secs(30));
+            stats = cache.begin_frame(&needed);
+            start += waited.elapsed();
+        }
+        for line in cache.take_log() {
+            eprintln!("hitex: warning: {line}");
+        }
+        let maps = FrameMaps::new(&cache, &meta, DVec2::new(eye.x, eye.y), per_side);
+        let mut rgba = vec![0u8; (w * h * 4) as usize];
+        rgba.par_chunks_mut((w * 4) as usize).enumerate().for_each(|(py, row)| {
+            for px in 0..w {
+                let hit = |dx: f64, dy: f64| cam.ground_hit(px as f64 + 0.5 + dx, py as f64 + 0.5 + dy);
+                let sky = 1.0 - py as f32 / h as f32;
+                let mut c = [0.55 + 0.2 * sky, 0.68 + 0.15 * sky, 0.86, 1.0];
+                if let (Some(p), Some(px1), Some(py1)) = (hit(0.0, 0.0), hit(1.0, 0.0), hit(0.0, 1.0)) {
+                    // eq. (2): the largest partial of the screen-to-map mapping
+                    let (dx, dy) = (px1 - p, py1 - p);
+                    let foot = dx.x.abs().max(dx.y.abs()).max(dy.x.abs()).max(dy.y.abs());
+                    let s = maps.sample(p, foot);
+                    let ground = [0.05f32, 0.06, 0.05];
+                    c = std::array::from_fn(|i| if i < 3 { s[i] + ground[i] * (1.0 - s[3]) } else { 1.0 });
+                }
+                let o = (px * 4) as usize;
+                row[o..o + 4].copy_from_slice(&[
+                    linear_to_srgb_u8(c[0]),
+                    linear_to_srgb_u8(c[1]),
+                    linear_to_srgb_u8(c[2]),
+                    255,
+                ]);
+            }
+        });
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        times.push(ms);
+        peak = (peak.0.max(stats.resident), peak.1.max(stats.bytes));
+        let frame = hitex_render::Frame { width: w, height: h, rgba };
+        save(&frame, &a.output.join(format!("frame-{f:04}.png")))?;
+        println!(
+            "{f:>6} {ms:>9.1} {:>7} {:>9} {:>9} {:>8} {:>7} {:>6.1} MiB",
+            stats.needed,
+            stats.resident,
+            stats.requested,
+            stats.missing,
+            stats.failed,
+            stats.bytes as f64 / 1048576.0
+        );
+    }
+    let med = crate::bench::median(&mut times);
+    println!(
+        "median {med:.1} ms per frame (CPU, {} threads); at most {} resident maps ({:.1} MiB), budget {}; frames in {}",
+        rayon::current_num_threads(),
+        peak.0,
+        peak.1 as f64 / 1048576.0,
+        a.budget,
+        a.output.display()
+    );
+    Ok(())
+}
