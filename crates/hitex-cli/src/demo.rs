@@ -129,6 +129,75 @@ fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) ->
     Ok(4)
 }
 
+/// The terrain pillar of the showcase, on procedural imagery (no files
+/// needed): a GST store built into `out/terrain-store`, three frames of an
+/// orbit through the resident-map cache side by side, and per-pixel
+/// trilinear | span 3×3 | span 4×4 | difference. Returns the images written.
+fn terrain_showcase(out: &Path, w: u32, h: u32, report: &mut Report<'_>) -> Result<usize, CliError> {
+    use crate::terrain_store_cmd::{BuildArgs, FlyArgs, build, fly};
+    let store = out.join("terrain-store");
+    println!("  terrain: building a 4096x4096 procedural GST store in {}", store.display());
+    build(BuildArgs {
+        image: None,
+        bands: "3,2,1".into(),
+        dem: None,
+        procedural: Some((4096, 4096)),
+        output: store.clone(),
+        shard: (0, 1),
+    })?;
+    let frames_dir = out.join("terrain-flight");
+    let (pw, ph) = ((w / 3).max(1), h);
+    let t = Instant::now();
+    fly(FlyArgs {
+        store,
+        path: None,
+        frames: 3,
+        size: (pw, ph),
+        budget: 400,
+        altitude: Some(300.0),
+        pitch: 40.0,
+        fov: 45.0,
+        wait: true,
+        output: frames_dir.clone(),
+    })?;
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    let mut panels = Vec::new();
+    for f in 0..3 {
+        let img =
+            hitex_io::load_image(&frames_dir.join(format!("frame-{f:04}.png")), hitex_core::texture::ColorSpace::Srgb)?;
+        panels.push(Frame { width: img.width(), height: img.height(), rgba: img.bytes().to_vec() });
+    }
+    report(
+        "terrain-flight.png",
+        "flight over a GST store through the resident-map cache (3 frames)",
+        &side_by_side(&panels),
+        ms,
+    )?;
+    let t = Instant::now();
+    let spans_png = out.join("terrain-spans.png");
+    crate::terrain_cmd::spans(crate::terrain_cmd::SpansArgs {
+        image: None,
+        bands: "3,2,1".into(),
+        pattern: "bricks".into(),
+        texture_size: 1024,
+        altitude: None,
+        pitch: 30.0,
+        heading: 30.0,
+        fov: 45.0,
+        frames: 2,
+        step: None,
+        size: ((w / 4).max(2) & !1, (h / 2).max(2) & !1),
+        output: spans_png.clone(),
+    })?;
+    println!(
+        "  {:<28} {:>13} {:>8.1} ms  trilinear | span 3x3 | span 4x4 | |trilinear - span 3x3| x 8",
+        spans_png.display(),
+        "",
+        t.elapsed().as_secs_f64() * 1e3
+    );
+    Ok(2)
+}
+
 /// Renders the showcase images into `out`.
 pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(), CliError> {
     std::fs::create_dir_all(out).map_err(|e| CliError::Internal(format!("cannot create {}: {e}", out.display())))?;
@@ -249,6 +318,9 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
     // 10–13. BTF (seed 000): procedural materials, index synthesis, layouts
     let n = btf_showcase(&mut r, &mut report, w, h)?;
 
-    println!("hitex demo: {} images in {}, {total:.0} ms of rendering", 9 + n, out.display());
+    // 14–15. Terrain (seed 001): a flight through the resident-map cache, span-parallel mapping
+    let m = terrain_showcase(out, w, h, &mut report)?;
+
+    println!("hitex demo: {} images in {}, {total:.0} ms of rendering", 9 + n + m, out.display());
     Ok(())
 }

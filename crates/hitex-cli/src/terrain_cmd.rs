@@ -341,7 +341,7 @@ fn spans_texture(a: &SpansArgs) -> Result<(MipPyramid, Wrap, String), CliError> 
 
 /// `hitex terrain spans`: per case the median time per frame, PSNR and SSIM
 /// against per-pixel trilinear, bank conflicts, and the memory of each design.
-fn spans(a: SpansArgs) -> Result<(), CliError> {
+pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
     use hitex_core::texture::span::{
         BankModel, FlightView, RgbaFrame, SpanFilter, SpanOptions, SpanScheme, memory_for_pyramid, psnr, render_spans,
         render_trilinear, ssim,

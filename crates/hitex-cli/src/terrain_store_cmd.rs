@@ -428,7 +428,12 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
         "frame", "ms", "needed", "resident", "requested", "missing", "failed", "memory"
     );
     for f in 0..a.frames.max(1) {
-        let t = if a.frames > 1 { t0 + (t1 - t0) * f as f64 / (a.frames - 1) as f64 } else { t0 };
+        // a path ends on its last key; an orbit is periodic (its last key is its first)
+        let t = match (&a.path, a.frames) {
+            (_, 0 | 1) => t0,
+            (Some(_), n) => t0 + (t1 - t0) * f as f64 / (n - 1) as f64,
+            (None, n) => t0 + (t1 - t0) * f as f64 / n as f64,
+        };
         let k = at_time(&keys, t);
         let mut start = Instant::now();
         let alt = k.altitude / metres;
