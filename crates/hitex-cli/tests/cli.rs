@@ -1,26 +1,9 @@
 //! The `hitex` binary as a user runs it: outputs, exit codes and error lines.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn hitex(args: &[&str]) -> Output {
-    match Command::new(env!("CARGO_BIN_EXE_hitex")).args(args).output() {
-        Ok(o) => o,
-        Err(e) => panic!("cannot run hitex: {e}"),
-    }
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("hitex-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-/// The error lines hitex printed (the GL driver may add noise lines of its own).
-fn error_lines(o: &Output) -> Vec<String> {
-    String::from_utf8_lossy(&o.stderr).lines().filter(|l| l.starts_with("hitex:")).map(str::to_string).collect()
-}
+use common::{error_lines, hitex, tmp};
+use std::path::Path;
 
 /// Runs `hitex render` on a scene text and expects exit code 2 with one error
 /// line containing every needle.

@@ -1,22 +1,10 @@
 //! `hitex terrain spans`: a tiny flight runs, writes its comparison image and
 //! reports zero bank conflicts.
 
+mod common;
+
+use common::{hitex, tmp};
 use std::path::PathBuf;
-use std::process::{Command, Output};
-
-fn hitex(args: &[&str]) -> Output {
-    match Command::new(env!("CARGO_BIN_EXE_hitex")).args(args).output() {
-        Ok(o) => o,
-        Err(e) => panic!("cannot run hitex: {e}"),
-    }
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("hitex-spans-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 /// The number after "total bank conflicts:".
 fn conflicts(stdout: &str) -> Option<u64> {
@@ -60,7 +48,7 @@ fn geotiff_flight_has_no_bank_conflicts() {
 
 #[test]
 fn bad_arguments_exit_2() {
-    let d = tmp("bad");
+    let d = tmp("spans-bad");
     let out = d.join("x.png");
     for bad in [
         vec!["--pitch", "0"],

@@ -1,29 +1,12 @@
 //! `hitex terrain build` and `hitex terrain fly` as a user runs them.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
 
-fn hitex(args: &[&str]) -> Output {
-    match Command::new(env!("CARGO_BIN_EXE_hitex")).args(args).output() {
-        Ok(o) => o,
-        Err(e) => panic!("cannot run hitex: {e}"),
-    }
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("hitex-store-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn errors(o: &Output) -> Vec<String> {
-    String::from_utf8_lossy(&o.stderr).lines().filter(|l| l.starts_with("hitex:")).map(str::to_string).collect()
-}
+use common::{error_lines, hitex, tmp};
 
 #[test]
 fn build_in_shards_then_fly_with_a_corrupt_map() {
-    let d = tmp("fly");
+    let d = tmp("store-fly");
     let store = d.join("store");
     let s = store.to_str().unwrap();
     for shard in ["0/2", "1/2"] {
@@ -56,13 +39,13 @@ fn build_in_shards_then_fly_with_a_corrupt_map() {
     for f in 0..3 {
         assert!(frames.join(format!("frame-{f:04}.png")).exists());
     }
-    let warn: Vec<_> = errors(&o).into_iter().filter(|l| l.contains("3/2/5.png")).collect();
+    let warn: Vec<_> = error_lines(&o).into_iter().filter(|l| l.contains("3/2/5.png")).collect();
     assert!(warn.len() <= 1, "{warn:?}");
 }
 
 #[test]
 fn bad_store_input_gives_one_clear_line() {
-    let d = tmp("bad");
+    let d = tmp("store-bad");
     let out = d.join("o");
     for (args, needle) in [
         (vec!["terrain", "build", "-o", out.to_str().unwrap()], "--procedural"),
@@ -70,7 +53,7 @@ fn bad_store_input_gives_one_clear_line() {
         (vec!["terrain", "fly", d.to_str().unwrap(), "-o", out.to_str().unwrap()], "metadata.json"),
     ] {
         let o = hitex(&args);
-        let lines = errors(&o);
+        let lines = error_lines(&o);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {lines:?} {}", String::from_utf8_lossy(&o.stderr));
         assert!(
             String::from_utf8_lossy(&o.stderr).contains(needle),
@@ -93,7 +76,7 @@ fn bad_store_input_gives_one_clear_line() {
         "-o",
         out.to_str().unwrap(),
     ]);
-    let lines = errors(&o);
+    let lines = error_lines(&o);
     assert_eq!(o.status.code(), Some(2), "{lines:?}");
     assert!(lines[0].contains("p.toml") && lines[0].contains("below the ground"), "{lines:?}");
 }

@@ -18,3 +18,13 @@ pub mod texture;
 pub mod tolerance;
 
 pub use error::CoreError;
+
+/// The splitmix64 finaliser: a fast, well-mixed hash of a 64-bit value, the
+/// deterministic noise of the procedural generators.
+#[inline]
+pub fn splitmix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}

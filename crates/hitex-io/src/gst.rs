@@ -16,6 +16,7 @@
 
 use crate::IoError;
 use crate::image_io::write_atomic;
+use hitex_core::splitmix64 as hash;
 use hitex_core::texture::image::decode_table;
 use hitex_core::texture::{ColorSpace, linear_to_srgb_u8};
 use rayon::prelude::*;
@@ -78,13 +79,6 @@ pub struct ProceduralSource {
     pub height: u32,
     /// Seed.
     pub seed: u64,
-}
-
-fn hash(mut x: u64) -> u64 {
-    x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    x ^ (x >> 31)
 }
 
 impl ProceduralSource {

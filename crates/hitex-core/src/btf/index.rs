@@ -543,12 +543,7 @@ fn top_eigen(a: &[f64], m: usize, want: usize) -> (Vec<f64>, Vec<Vec<f64>>) {
 // ---------------------------------------------------------------------------
 // hashing
 
-fn splitmix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
+use crate::splitmix64;
 
 fn hash3(a: u64, b: u64, c: u64) -> u64 {
     splitmix64(splitmix64(a ^ splitmix64(b)) ^ c)

@@ -545,30 +545,6 @@ impl Codebook {
         plan
     }
 
-    /// [`Codebook::corner`] with the pixel's [`PixelPlan`]: the same reads
-    /// and weights (texels of zero weight skipped), for rendering.
-    #[inline]
-    pub fn corner_planned(&self, plan: &PixelPlan, su: u32, sv: u32, lut: &[f32; 256]) -> Vec3 {
-        let (su_k, sv_k) = (su * self.strides[0], sv * self.strides[1]);
-        let (dx, dy) = (if plan.u_on_x { su } else { 0 }, if plan.v_on_y { sv } else { 0 });
-        let w = self.width as usize;
-        let (mut r, mut g, mut b) = (0.0f32, 0.0f32, 0.0f32);
-        for &(k_ang, wc) in &plan.combos[..plan.n_combos] {
-            let k = k_ang + su_k + sv_k;
-            let (col, row) = (k % self.tile_cols, k / self.tile_cols);
-            let base = (row * self.tile_h + dy) as usize * w + (col * self.tile_w + dx) as usize;
-            for &(off, wt) in &plan.taps[..plan.n_taps] {
-                let i = (base + off) * 4;
-                let t = &self.texels[i..i + 3];
-                let ww = wc * wt;
-                r += lut[t[0] as usize] * ww;
-                g += lut[t[1] as usize] * ww;
-                b += lut[t[2] as usize] * ww;
-            }
-        }
-        Vec3::new(r, g, b)
-    }
-
     /// The texels decoded to linear RGB (alpha 1), one SIMD vector each:
     /// what the GPU's sRGB decoder hands its filter, cached for the CPU twin.
     pub fn linear_texels(&self) -> Vec<Vec4> {
@@ -581,8 +557,9 @@ impl Codebook {
             .collect()
     }
 
-    /// [`Codebook::corner_planned`] reading the decoded texels of
-    /// [`Codebook::linear_texels`]; RGB in x, y, z.
+    /// [`Codebook::corner`] with the pixel's [`PixelPlan`] over the decoded
+    /// texels of [`Codebook::linear_texels`]: the same reads and weights
+    /// (texels of zero weight skipped), for rendering; RGB in x, y, z.
     #[inline]
     pub fn corner_planned_linear(&self, plan: &PixelPlan, su: u32, sv: u32, linear: &[Vec4]) -> Vec4 {
         let (su_k, sv_k) = (su * self.strides[0], sv * self.strides[1]);
@@ -721,7 +698,6 @@ mod tests {
     #[test]
     fn planned_reads_equal_the_generic_ones() {
         let b = random_btf();
-        let lut = decode_table(ColorSpace::Srgb);
         for layout in Layout::ALL {
             let cb = Codebook::build(&b, layout).unwrap();
             let linear = cb.linear_texels();
@@ -729,8 +705,6 @@ mod tests {
                 let l = lerps(b.grid(), k);
                 let (su, sv) = (k % 6, (k / 6) % 4);
                 let want = cb.corner(su, sv, &l, &mut ());
-                let got = cb.corner_planned(&cb.plan(&l), su, sv, lut);
-                assert!((want - got).abs().max_element() < 1e-4, "{}: {got} vs {want}", layout.label());
                 let lin = cb.corner_planned_linear(&cb.plan(&l), su, sv, &linear).truncate();
                 assert!((want - lin).abs().max_element() < 1e-4, "{}: {lin} vs {want}", layout.label());
             }

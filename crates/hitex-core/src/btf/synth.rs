@@ -73,16 +73,9 @@ pub struct MicroSurface {
     pub f0: Vec3,
 }
 
-fn hash(mut x: u64) -> u64 {
-    // splitmix64 finaliser
-    x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    x ^ (x >> 31)
-}
-
 fn rand2(i: i64, j: i64, seed: u64) -> f32 {
-    (hash((i as u64) ^ (j as u64).rotate_left(21) ^ seed.rotate_left(42)) >> 40) as f32 / (1u64 << 24) as f32
+    (crate::splitmix64((i as u64) ^ (j as u64).rotate_left(21) ^ seed.rotate_left(42)) >> 40) as f32
+        / (1u64 << 24) as f32
 }
 
 /// Periodic value noise of `cells` cells per unit.
