@@ -133,7 +133,13 @@ fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) ->
 /// needed): a GST store built into `out/terrain-store`, three frames of an
 /// orbit through the resident-map cache side by side, and per-pixel
 /// trilinear | span 3×3 | span 4×4 | difference. Returns the images written.
-fn terrain_showcase(out: &Path, w: u32, h: u32, report: &mut Report<'_>) -> Result<usize, CliError> {
+fn terrain_showcase(
+    out: &Path,
+    backend: BackendChoice,
+    w: u32,
+    h: u32,
+    report: &mut Report<'_>,
+) -> Result<usize, CliError> {
     use crate::terrain_store_cmd::{BuildArgs, FlyArgs, build, fly};
     let store = out.join("terrain-store");
     println!("  terrain: building a 4096x4096 procedural GST store in {}", store.display());
@@ -159,6 +165,11 @@ fn terrain_showcase(out: &Path, w: u32, h: u32, report: &mut Report<'_>) -> Resu
         fov: 45.0,
         wait: true,
         output: frames_dir.clone(),
+        backend: match backend {
+            BackendChoice::Auto => crate::Backend::Auto,
+            BackendChoice::Cpu => crate::Backend::Cpu,
+            BackendChoice::Gpu => crate::Backend::Gpu,
+        },
     })?;
     let ms = t.elapsed().as_secs_f64() * 1e3;
     let mut panels = Vec::new();
@@ -319,7 +330,7 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
     let n = btf_showcase(&mut r, &mut report, w, h)?;
 
     // 14–15. Terrain (seed 001): a flight through the resident-map cache, span-parallel mapping
-    let m = terrain_showcase(out, w, h, &mut report)?;
+    let m = terrain_showcase(out, backend, w, h, &mut report)?;
 
     println!("hitex demo: {} images in {}, {total:.0} ms of rendering", 9 + n + m, out.display());
     Ok(())

@@ -2,6 +2,7 @@
 
 mod bench;
 mod bench_btf;
+mod bench_terrain;
 mod btf_cmd;
 mod demo;
 mod nurbs_cmd;
@@ -89,6 +90,8 @@ enum BenchCommand {
     Nurbs(bench::NurbsArgs),
     /// BTF codebook layouts (a)–(f), raw and BC1, a 256×256 quad in 640×480.
     Btf(bench_btf::BtfArgs),
+    /// Flight frames over a GST store: trilinear on both backends, span 3×3 / 4×4 / bicubic.
+    Terrain(bench_terrain::TerrainArgs),
 }
 
 #[derive(Clone, Copy, ValueEnum, PartialEq, Eq, Debug)]
@@ -225,6 +228,17 @@ impl AnyRenderer {
             Self::Gpu(g) => g.render_btf(scene, camera, light, w, h),
         }
     }
+    /// Renders one flight frame over a GST store.
+    pub fn render_fly(
+        &mut self,
+        u: &hitex_render::terrain::FlyUniform,
+        pages: &hitex_render::terrain::FlyPages,
+    ) -> Result<Frame, RenderError> {
+        match self {
+            Self::Cpu(_) => hitex_render::cpu::terrain::render_fly(u, pages),
+            Self::Gpu(g) => g.render_fly(u, pages),
+        }
+    }
     /// Renders one frame.
     pub fn render(
         &mut self,
@@ -298,6 +312,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
             BenchCommand::Texture(args) => bench::texture(args),
             BenchCommand::Nurbs(args) => bench::nurbs(args),
             BenchCommand::Btf(args) => bench_btf::btf(args),
+            BenchCommand::Terrain(args) => bench_terrain::terrain(args),
         },
     }
 }

@@ -1,17 +1,15 @@
 //! `hitex terrain build` and `hitex terrain fly`: GST pyramids on disk and
 //! flights over them through the resident-map cache.
 
-use crate::{CliError, parse_size, save};
+use crate::{AnyRenderer, Backend, CliError, parse_size, save};
 use clap::Args;
-use glam::{DVec2, DVec3};
+use glam::DVec2;
 use hitex_core::residency::{MapKey, ResidentMaps, View, active_maps};
-use hitex_core::texture::image::decode_table;
-use hitex_core::texture::{ColorSpace, linear_to_srgb_u8};
 use hitex_io::gst::{
     BuildOptions, MemorySource, ProceduralSource, StoreMeta, TILE, TileSource, build_store, open_store, read_tile,
 };
+use hitex_render::terrain::{FlyCamera, FlyPages, FlyUniform};
 use indicatif::{ProgressBar, ProgressStyle};
-use rayon::prelude::*;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -156,6 +154,9 @@ pub struct FlyArgs {
     /// Output folder for frame PNGs.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Which renderer to use.
+    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    pub backend: Backend,
 }
 
 /// One key of a flight path.
@@ -228,143 +229,49 @@ fn at_time(keys: &[PathKey], t: f64) -> PathKey {
     }
 }
 
-/// A level's window of the active area: its first map column and row, and
-/// per slot the level of the resident map that serves it and its texels.
-type Window = (i64, i64, Vec<Option<(u32, Arc<Vec<u8>>)>>);
+/// The resident-map cache of a store, loading maps with [`read_tile`].
+pub fn open_cache(store: &Path, meta: &StoreMeta, budget: usize) -> Result<ResidentMaps, CliError> {
+    let root = store.to_path_buf();
+    let m2 = meta.clone();
+    let loader: Arc<hitex_core::residency::Loader> =
+        Arc::new(move |k: MapKey| read_tile(&m2, &root, k.z, k.x, k.y).map_err(|e| e.to_string()));
+    ResidentMaps::new(budget, loader).map_err(CliError::Input)
+}
 
-/// The resolved maps of one frame: per level, the window of the active area.
-struct FrameMaps {
-    levels: u32,
+/// The camera of a path key over a store of `extent` finest texels.
+pub fn camera_at(k: &PathKey, meta: &StoreMeta, extent: DVec2, fov: f64) -> FlyCamera {
+    FlyCamera::new(k.x * extent.x, k.y * extent.y, k.altitude / meta.pixel[0], k.pitch, k.heading, fov)
+}
+
+/// One frame's cache traffic, uniforms and page table; with `wait`, the
+/// time spent waiting for loads is moved out of the frame (`start` advances).
+#[allow(clippy::too_many_arguments)]
+pub fn frame_setup(
+    cache: &mut ResidentMaps,
+    meta: &StoreMeta,
+    cam: &FlyCamera,
+    (w, h): (u32, u32),
+    fov: f64,
     per_side: u32,
-    windows: Vec<Window>,
-    lut: &'static [f32; 256],
-}
-
-impl FrameMaps {
-    fn new(cache: &ResidentMaps, meta: &StoreMeta, eye: DVec2, per_side: u32) -> Self {
-        let windows = (0..meta.levels)
-            .map(|z| {
-                let span = TILE as f64 * meta.scale(z) as f64;
-                let (cols, rows) = meta.data_tiles(z);
-                let half = per_side as f64 / 2.0;
-                let (x0, y0) = ((eye.x / span - half).floor() as i64, (eye.y / span - half).floor() as i64);
-                let slots = (0..per_side as i64 * per_side as i64)
-                    .map(|k| {
-                        let (x, y) = (x0 + k % per_side as i64, y0 + k / per_side as i64);
-                        if x < 0 || y < 0 || x >= cols as i64 || y >= rows as i64 {
-                            return None;
-                        }
-                        let (found, t) = cache.lookup(MapKey { z, x: x as u32, y: y as u32 });
-                        Some((found.z, t))
-                    })
-                    .collect();
-                (x0, y0, slots)
-            })
-            .collect();
-        Self { levels: meta.levels, per_side, windows, lut: decode_table(ColorSpace::Srgb) }
+    wait: bool,
+    start: &mut Instant,
+) -> (hitex_core::residency::FrameStats, FlyUniform, FlyPages) {
+    let eye = [cam.eye[0], cam.eye[1]];
+    let view = View { fov_deg: fov, pixels: w, per_side };
+    let needed = active_maps(meta.levels, TILE, |z| meta.data_tiles(z), eye, cam.eye[2], view);
+    let mut stats = cache.begin_frame(&needed);
+    if wait {
+        // loading is the background thread's work: waiting for it is not frame time
+        let waited = Instant::now();
+        cache.wait_pending(Duration::from_secs(30));
+        stats = cache.begin_frame(&needed);
+        *start += waited.elapsed();
     }
-
-    /// Linear RGBA of texel (tx, ty) of level z; transparent outside the data.
-    fn texel(&self, z: u32, tx: i64, ty: i64) -> [f32; 4] {
-        let mut z = z;
-        let (mut tx, mut ty) = (tx, ty);
-        loop {
-            let (x0, y0, slots) = &self.windows[z as usize];
-            let (mx, my) = (tx.div_euclid(TILE as i64) - x0, ty.div_euclid(TILE as i64) - y0);
-            let inside = mx >= 0 && my >= 0 && mx < self.per_side as i64 && my < self.per_side as i64;
-            if inside {
-                let Some((found, t)) = &slots[(my * self.per_side as i64 + mx) as usize] else {
-                    return [0.0; 4];
-                };
-                // a coarser resident map stands in: its texel containing this one
-                let k = z - found;
-                let (fx, fy) = (tx >> k, ty >> k);
-                let (lx, ly) = (fx.rem_euclid(TILE as i64) as usize, fy.rem_euclid(TILE as i64) as usize);
-                let i = (ly * TILE as usize + lx) * 4;
-                if i + 3 >= t.len() {
-                    return [0.0; 4];
-                }
-                return [
-                    self.lut[t[i] as usize],
-                    self.lut[t[i + 1] as usize],
-                    self.lut[t[i + 2] as usize],
-                    t[i + 3] as f32 / 255.0,
-                ];
-            }
-            // outside the active area: the next coarser level covers it
-            if z == 0 {
-                return [0.0; 4];
-            }
-            z -= 1;
-            tx >>= 1;
-            ty >>= 1;
-        }
+    for line in cache.take_log() {
+        eprintln!("hitex: warning: {line}");
     }
-
-    /// Trilinear sample at finest-texel position `p` with footprint `foot`
-    /// (finest texels per pixel, eq. (2)).
-    fn sample(&self, p: DVec2, foot: f64) -> [f32; 4] {
-        let lambda = foot.max(1e-9).log2();
-        let zf = (self.levels - 1) as f64 - lambda;
-        let zf = zf.clamp(0.0, (self.levels - 1) as f64);
-        let z0 = zf.floor() as u32;
-        let z1 = (z0 + 1).min(self.levels - 1);
-        let t = (zf - z0 as f64) as f32;
-        let a = self.bilinear(z0, p);
-        if t <= 0.0 || z1 == z0 {
-            return a;
-        }
-        let b = self.bilinear(z1, p);
-        std::array::from_fn(|k| a[k] + (b[k] - a[k]) * t)
-    }
-
-    fn bilinear(&self, z: u32, p: DVec2) -> [f32; 4] {
-        let s = (1u64 << (self.levels - 1 - z)) as f64;
-        let (x, y) = (p.x / s - 0.5, p.y / s - 0.5);
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
-        let (ix, iy) = (x0 as i64, y0 as i64);
-        let c = [
-            self.texel(z, ix, iy),
-            self.texel(z, ix + 1, iy),
-            self.texel(z, ix, iy + 1),
-            self.texel(z, ix + 1, iy + 1),
-        ];
-        std::array::from_fn(|k| {
-            let top = c[0][k] + (c[1][k] - c[0][k]) * fx;
-            let bot = c[2][k] + (c[3][k] - c[2][k]) * fx;
-            top + (bot - top) * fy
-        })
-    }
-}
-
-/// A pinhole camera over flat ground: eye (finest texels, z up), its axes,
-/// tan of half the horizontal field of view, aspect and size.
-struct Eye {
-    pos: DVec3,
-    fwd: DVec3,
-    right: DVec3,
-    up: DVec3,
-    tan_h: f64,
-    aspect: f64,
-    size: (u32, u32),
-}
-
-impl Eye {
-    /// The ground point (finest texels) seen through pixel position (px, py),
-    /// or None at and above the horizon.
-    fn ground_hit(&self, px: f64, py: f64) -> Option<DVec2> {
-        let (w, h) = self.size;
-        let sx = (2.0 * px / w as f64 - 1.0) * self.tan_h;
-        let sy = (1.0 - 2.0 * py / h as f64) * self.tan_h / self.aspect;
-        let d = self.fwd + self.right * sx + self.up * sy;
-        if d.z >= -1e-9 {
-            return None;
-        }
-        let t = -self.pos.z / d.z;
-        let g = DVec2::new(self.pos.x + d.x * t, self.pos.y + d.y * t);
-        g.is_finite().then_some(g)
-    }
+    let pages = FlyPages::new(cache, meta.levels, per_side, |z| meta.data_tiles(z), eye);
+    (stats, FlyUniform::new(cam, w, h, meta.levels, per_side), pages)
 }
 
 /// `hitex terrain fly`.
@@ -405,23 +312,19 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
         .map_err(|e| CliError::Input(e.to_string()))?
         .first()
         .map_or(6, |l| l.per_side);
-    let root = a.store.clone();
-    let m2 = meta.clone();
-    let loader: Arc<hitex_core::residency::Loader> =
-        Arc::new(move |k: MapKey| read_tile(&m2, &root, k.z, k.x, k.y).map_err(|e| e.to_string()));
-    let mut cache = ResidentMaps::new(a.budget, loader).map_err(CliError::Input)?;
+    let mut cache = open_cache(&a.store, &meta, a.budget)?;
+    let mut renderer = AnyRenderer::open(a.backend.into())?;
     let (t0, t1) = (keys[0].t, keys[keys.len() - 1].t);
-    let tan_h = (a.fov.to_radians() / 2.0).tan();
-    let aspect = w as f64 / h as f64;
     let mut times = Vec::new();
     let mut peak = (0usize, 0usize);
     println!(
-        "flying over {} ({} levels, {}x{} texels) at {w}x{h}, budget {} maps:",
+        "flying over {} ({} levels, {}x{} texels) at {w}x{h}, budget {} maps, {}:",
         a.store.display(),
         meta.levels,
         meta.width,
         meta.height,
-        a.budget
+        a.budget,
+        renderer.name()
     );
     println!(
         "{:>6} {:>9} {:>7} {:>9} {:>9} {:>8} {:>7} {:>10}",
@@ -436,61 +339,12 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
         };
         let k = at_time(&keys, t);
         let mut start = Instant::now();
-        let alt = k.altitude / metres;
-        let eye = DVec3::new(k.x * extent.x, k.y * extent.y, alt);
-        let (th, hd) = (k.pitch.to_radians(), k.heading.to_radians());
-        // x east, y south, z up; heading clockwise from north (−y)
-        let fwd = DVec3::new(th.sin() * hd.sin(), -th.sin() * hd.cos(), -th.cos());
-        let right = DVec3::new(hd.cos(), hd.sin(), 0.0);
-        let up = fwd.cross(right).normalize();
-        let cam = Eye { pos: eye, fwd, right, up, tan_h, aspect, size: (w, h) };
-        let needed = active_maps(
-            meta.levels,
-            TILE,
-            |z| meta.data_tiles(z),
-            [eye.x, eye.y],
-            alt,
-            View { fov_deg: a.fov, pixels: w, per_side },
-        );
-        let mut stats = cache.begin_frame(&needed);
-        if a.wait {
-            // loading is the background thread's work: waiting for it is not frame time
-            let waited = Instant::now();
-            cache.wait_pending(Duration::from_secs(30));
-            stats = cache.begin_frame(&needed);
-            start += waited.elapsed();
-        }
-        for line in cache.take_log() {
-            eprintln!("hitex: warning: {line}");
-        }
-        let maps = FrameMaps::new(&cache, &meta, DVec2::new(eye.x, eye.y), per_side);
-        let mut rgba = vec![0u8; (w * h * 4) as usize];
-        rgba.par_chunks_mut((w * 4) as usize).enumerate().for_each(|(py, row)| {
-            for px in 0..w {
-                let hit = |dx: f64, dy: f64| cam.ground_hit(px as f64 + 0.5 + dx, py as f64 + 0.5 + dy);
-                let sky = 1.0 - py as f32 / h as f32;
-                let mut c = [0.55 + 0.2 * sky, 0.68 + 0.15 * sky, 0.86, 1.0];
-                if let (Some(p), Some(px1), Some(py1)) = (hit(0.0, 0.0), hit(1.0, 0.0), hit(0.0, 1.0)) {
-                    // eq. (2): the largest partial of the screen-to-map mapping
-                    let (dx, dy) = (px1 - p, py1 - p);
-                    let foot = dx.x.abs().max(dx.y.abs()).max(dy.x.abs()).max(dy.y.abs());
-                    let s = maps.sample(p, foot);
-                    let ground = [0.05f32, 0.06, 0.05];
-                    c = std::array::from_fn(|i| if i < 3 { s[i] + ground[i] * (1.0 - s[3]) } else { 1.0 });
-                }
-                let o = (px * 4) as usize;
-                row[o..o + 4].copy_from_slice(&[
-                    linear_to_srgb_u8(c[0]),
-                    linear_to_srgb_u8(c[1]),
-                    linear_to_srgb_u8(c[2]),
-                    255,
-                ]);
-            }
-        });
+        let cam = camera_at(&k, &meta, extent, a.fov);
+        let (stats, u, pages) = frame_setup(&mut cache, &meta, &cam, (w, h), a.fov, per_side, a.wait, &mut start);
+        let frame = renderer.render_fly(&u, &pages)?;
         let ms = start.elapsed().as_secs_f64() * 1e3;
         times.push(ms);
         peak = (peak.0.max(stats.resident), peak.1.max(stats.bytes));
-        let frame = hitex_render::Frame { width: w, height: h, rgba };
         save(&frame, &a.output.join(format!("frame-{f:04}.png")))?;
         println!(
             "{f:>6} {ms:>9.1} {:>7} {:>9} {:>9} {:>8} {:>7} {:>6.1} MiB",
@@ -504,8 +358,8 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
     }
     let med = crate::bench::median(&mut times);
     println!(
-        "median {med:.1} ms per frame (CPU, {} threads); at most {} resident maps ({:.1} MiB), budget {}; frames in {}",
-        rayon::current_num_threads(),
+        "median {med:.1} ms per frame ({}); at most {} resident maps ({:.1} MiB), budget {}; frames in {}",
+        renderer.name(),
         peak.0,
         peak.1 as f64 / 1048576.0,
         a.budget,

@@ -80,3 +80,18 @@ fn bad_store_input_gives_one_clear_line() {
     assert_eq!(o.status.code(), Some(2), "{lines:?}");
     assert!(lines[0].contains("p.toml") && lines[0].contains("below the ground"), "{lines:?}");
 }
+
+#[test]
+fn bench_terrain_reports_every_case() {
+    let o = hitex(&["bench", "terrain", "--frames", "2", "--size", "64x48", "--source", "512", "--backends", "cpu", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let cases: Vec<&str> = v["rows"].as_array().unwrap().iter().filter_map(|r| r["case"].as_str()).collect();
+    for c in ["trilinear", "span3", "span4", "bicubic"] {
+        assert!(cases.contains(&c), "{c} missing in {cases:?}");
+    }
+    for s in v["spans"].as_array().unwrap() {
+        assert_eq!(s["bank_conflicts"].as_u64(), Some(0), "{s}");
+    }
+    assert!(v["resident_maps"].as_u64().unwrap() >= 1);
+}

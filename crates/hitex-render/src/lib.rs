@@ -15,6 +15,7 @@ pub mod gpu;
 pub mod legend;
 pub mod nurbs;
 pub mod prepare;
+pub mod terrain;
 
 pub use compare::{ImageDiff, compare_rgba};
 pub use cpu::CpuRenderer;

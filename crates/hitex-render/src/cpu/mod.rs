@@ -8,6 +8,7 @@
 pub mod btf;
 pub mod nurbs;
 pub mod raster;
+pub mod terrain;
 pub mod textured;
 
 use crate::prepare::PreparedScene;

@@ -4,6 +4,7 @@
 mod btf;
 pub mod device;
 mod nurbs;
+mod terrain;
 
 pub use btf::layout_source;
 
@@ -138,6 +139,7 @@ pub struct GpuRenderer {
     target: Option<TargetSet>,
     nurbs: Option<nurbs::NurbsGpu>,
     btf: Option<btf::BtfGpu>,
+    fly: Option<terrain::FlyGpu>,
 }
 
 impl GpuRenderer {
@@ -229,6 +231,7 @@ impl GpuRenderer {
             target: None,
             nurbs: None,
             btf: None,
+            fly: None,
         })
     }
 

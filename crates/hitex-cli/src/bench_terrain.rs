@@ -1,0 +1,221 @@
+//! `hitex bench terrain`: the same flight frames over a GST store on both
+//! backends (per-pixel trilinear through the resident-map cache), and the
+//! span-parallel variants of eq. (8)–(10) on the same views (CPU emulation
+//! of the bank memory) with their image difference and bank conflicts.
+
+use crate::bench::{Backends, CaseFn, Report, Row, median, print_table, run_case_fns};
+use crate::terrain_store_cmd::{PathKey, camera_at, frame_setup, open_cache};
+use crate::{AnyRenderer, CliError, parse_size};
+use glam::DVec2;
+use hitex_core::texture::span::{
+    BankModel, FlightView, SpanFilter, SpanOptions, SpanScheme, psnr, render_spans, render_trilinear, ssim,
+};
+use hitex_core::texture::{ColorSpace, Image, MipPyramid, Wrap};
+use hitex_io::gst::{BuildOptions, ProceduralSource, StoreMeta, TILE, TileSource, build_store};
+use serde::Serialize;
+use std::cell::RefCell;
+use std::time::Instant;
+
+/// Arguments of `hitex bench terrain`.
+#[derive(clap::Args, Debug)]
+pub struct TerrainArgs {
+    /// Print JSON on stdout instead of tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Frames of the orbit.
+    #[arg(long, default_value_t = 12)]
+    pub frames: u32,
+    /// Frame size.
+    #[arg(long, value_parser = parse_size, default_value = "1024x768")]
+    pub size: (u32, u32),
+    /// Side of the procedural source in texels (a power of two of at least 256).
+    #[arg(long, default_value_t = 4096)]
+    pub source: u32,
+    /// Backends to run.
+    #[arg(long, value_enum, default_value_t = Backends::Both)]
+    pub backends: Backends,
+}
+
+/// A span case against per-pixel trilinear on the same views.
+#[derive(Debug, Clone, Serialize)]
+pub struct SpanRow {
+    /// Case name.
+    pub case: String,
+    /// Mean PSNR against per-pixel trilinear, dB.
+    pub psnr_db: f64,
+    /// Mean SSIM against per-pixel trilinear.
+    pub ssim: f64,
+    /// Bank conflicts over the whole flight.
+    pub bank_conflicts: u64,
+    /// Span accesses over the whole flight.
+    pub accesses: u64,
+}
+
+/// The whole report.
+#[derive(Debug, Clone, Serialize)]
+pub struct TerrainReport {
+    /// Frame timings as every bench.
+    #[serde(flatten)]
+    pub timing: Report,
+    /// Source side in texels.
+    pub source: u32,
+    /// Maps in the store.
+    pub store_maps: u64,
+    /// Most maps resident at once during the flight.
+    pub resident_maps: usize,
+    /// Bytes of those maps.
+    pub resident_bytes: usize,
+    /// Span cases.
+    pub spans: Vec<SpanRow>,
+}
+
+/// `hitex bench terrain`.
+pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
+    if a.source < TILE || !a.source.is_power_of_two() || a.source > 16384 {
+        return Err(CliError::Input(format!("--source {} must be a power of two in 256..=16384", a.source)));
+    }
+    let (w, h) = a.size;
+    let dir = std::env::temp_dir().join(format!("hitex-bench-terrain-{}", std::process::id()));
+    let src = ProceduralSource { width: a.source, height: a.source, seed: 1 };
+    let meta = StoreMeta::for_source(a.source, a.source, [0.0, 0.0], [1.0, 1.0], "", &src.describe());
+    let t = Instant::now();
+    build_store(&src, &meta, &dir, BuildOptions::default(), &|_, _| {})?;
+    if !a.json {
+        println!(
+            "hitex bench terrain: {} ({} maps, built in {:.1} s), {w}x{h}, an orbit of {} frames at 800 m, pitch 60° from the nadir, FOV 45°",
+            src.describe(),
+            meta.total_tiles(),
+            t.elapsed().as_secs_f64(),
+            a.frames
+        );
+    }
+    let extent = DVec2::new(a.source as f64, a.source as f64);
+    let frames = a.frames.max(1);
+    let key = |i: u32| {
+        let ang = i as f64 / frames as f64 * std::f64::consts::TAU;
+        PathKey {
+            t: i as f64,
+            x: 0.5 - 0.3 * ang.sin(),
+            y: 0.5 + 0.3 * ang.cos(),
+            altitude: 800.0,
+            pitch: 60.0,
+            heading: ang.to_degrees(),
+        }
+    };
+    let per_side = hitex_core::terrain::active_area(45.0, w, TILE, meta.levels)
+        .map_err(|e| CliError::Input(e.to_string()))?
+        .first()
+        .map_or(6, |l| l.per_side);
+    // load every map the flight needs first: the timed frames then measure rendering only
+    let budget = (meta.total_tiles() as usize).max(1);
+    let cache = RefCell::new(open_cache(&dir, &meta, budget)?);
+    let mut resident = (0usize, 0usize);
+    for i in 0..frames {
+        let mut start = Instant::now();
+        let (s, _, _) = frame_setup(
+            &mut cache.borrow_mut(),
+            &meta,
+            &camera_at(&key(i), &meta, extent, 45.0),
+            (w, h),
+            45.0,
+            per_side,
+            true,
+            &mut start,
+        );
+        resident = (resident.0.max(s.resident), resident.1.max(s.bytes));
+    }
+    let f: CaseFn = Box::new(|r: &mut AnyRenderer, i: u32, _k: u32, w: u32, h: u32| {
+        let mut start = Instant::now();
+        let cam = camera_at(&key(i), &meta, extent, 45.0);
+        let (_, u, pages) =
+            frame_setup(&mut cache.borrow_mut(), &meta, &cam, (w, h), 45.0, per_side, false, &mut start);
+        r.render_fly(&u, &pages)
+    });
+    let mut timing = run_case_fns("terrain", &[("trilinear".to_string(), f)], frames, a.size, a.backends, a.json)?;
+    // span cases on the same views, from the source's full pyramid
+    let img = Image::new(
+        a.source,
+        a.source,
+        ColorSpace::Srgb,
+        src.read(0, 0, a.source, a.source)?.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect(),
+    )
+    .map_err(|e| CliError::Internal(e.to_string()))?;
+    let pyr = MipPyramid::build(img);
+    let _ = pyr.linear_level(0);
+    let views: Vec<FlightView> = (0..frames)
+        .map(|i| {
+            let k = key(i);
+            FlightView {
+                position: [k.x * extent.x, k.y * extent.y],
+                altitude: k.altitude,
+                pitch_deg: 90.0 - k.pitch,
+                heading_deg: k.heading,
+                fov_deg: 45.0,
+                width: w,
+                height: h,
+            }
+        })
+        .collect();
+    let refs: Vec<_> = views.iter().map(|v| render_trilinear(&pyr, v, Wrap::Clamp)).collect();
+    let mut spans = Vec::new();
+    for (name, scheme, filter) in [
+        ("span3", SpanScheme::Banks3x3, SpanFilter::Bilinear),
+        ("span4", SpanScheme::Banks4x4, SpanFilter::Bilinear),
+        ("bicubic", SpanScheme::Banks4x4, SpanFilter::Bicubic),
+    ] {
+        let opts = SpanOptions { scheme, filter, wrap: Wrap::Clamp, level_shift: 0 };
+        let mut banks = BankModel::new(scheme);
+        let (mut times, mut p, mut s) = (Vec::new(), 0.0, 0.0);
+        for (v, r) in views.iter().zip(&refs) {
+            let t = Instant::now();
+            let f = render_spans(&pyr, v, &opts, &mut banks);
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+            p += psnr(r, &f);
+            s += ssim(r, &f);
+        }
+        let ms = median(&mut times);
+        timing.rows.push(Row {
+            case: name.into(),
+            backend: "cpu".into(),
+            adapter: format!("cpu ({} threads), bank emulation", rayon::current_num_threads()),
+            width: w,
+            height: h,
+            frames,
+            ms_median: ms,
+            fps_median: 1e3 / ms,
+        });
+        spans.push(SpanRow {
+            case: name.into(),
+            psnr_db: p / frames as f64,
+            ssim: s / frames as f64,
+            bank_conflicts: banks.conflicts,
+            accesses: banks.accesses,
+        });
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    let report = TerrainReport {
+        timing,
+        source: a.source,
+        store_maps: meta.total_tiles(),
+        resident_maps: resident.0,
+        resident_bytes: resident.1,
+        spans,
+    };
+    if a.json {
+        let text = serde_json::to_string_pretty(&report).map_err(|e| CliError::Internal(e.to_string()))?;
+        println!("{text}");
+    } else {
+        print_table(&report.timing);
+        println!(
+            "resident: at most {} maps ({:.1} MiB) of the store's {}",
+            report.resident_maps,
+            report.resident_bytes as f64 / 1048576.0,
+            report.store_maps
+        );
+        println!("{:<10} {:>10} {:>8} {:>15} {:>12}", "case", "PSNR dB", "SSIM", "bank conflicts", "accesses");
+        for s in &report.spans {
+            println!("{:<10} {:>10.2} {:>8.4} {:>15} {:>12}", s.case, s.psnr_db, s.ssim, s.bank_conflicts, s.accesses);
+        }
+    }
+    Ok(())
+}

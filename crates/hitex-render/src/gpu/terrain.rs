@@ -1,0 +1,283 @@
+//! The flight pipeline: resident maps in one 2-D array texture (a layer per
+//! map, uploaded once while it stays resident), the frame's page table in a
+//! storage buffer, `shaders/terrain.wgsl` over a full-screen triangle.
+
+use super::{GpuError, GpuRenderer, trusted_module};
+use crate::terrain::{FlyPages, FlyUniform, MAP};
+use crate::{Frame, RenderError};
+use hitex_core::residency::MapKey;
+use std::collections::HashMap;
+
+/// The flight shader source.
+pub const TERRAIN_WGSL: &str = include_str!("../../shaders/terrain.wgsl");
+
+/// Levels the page table holds (the shader's `origins` array).
+const MAX_LEVELS: u32 = 32;
+
+pub(crate) struct FlyGpu {
+    pipeline: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+    uniform: wgpu::Buffer,
+    pages: Option<wgpu::Buffer>,
+    maps: Option<wgpu::Texture>,
+    capacity: u32,
+    /// Map → (layer, frame last used).
+    layers: HashMap<MapKey, (u32, u64)>,
+    frame: u64,
+}
+
+impl FlyGpu {
+    fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        // SAFETY: terrain.wgsl indexes `origins` with z < levels ≤ 32 (checked
+        // before upload), `slots` with slot indices inside the window of each
+        // level (the table holds levels × per_side² entries), and reads layers
+        // the table names, all below the array's layer count.
+        let module = unsafe { trusted_module(device, "terrain.wgsl", TERRAIN_WGSL) };
+        let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty,
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("fly"),
+            entries: &[
+                entry(
+                    0,
+                    wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                ),
+                entry(
+                    1,
+                    wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: true },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                ),
+                entry(
+                    2,
+                    wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
+                ),
+            ],
+        });
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("fly"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("fly"),
+            layout: Some(&pl),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            // the pass has a depth target; the full-screen triangle ignores it
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(false),
+                depth_compare: Some(wgpu::CompareFunction::Always),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: wgpu::TextureFormat::Rgba8Unorm,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(GpuError::Device(format!("flight pipeline creation failed: {e}")));
+        }
+        let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("fly"),
+            size: std::mem::size_of::<FlyUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Ok(Self { pipeline, layout, uniform, pages: None, maps: None, capacity: 0, layers: HashMap::new(), frame: 0 })
+    }
+
+    /// Gives every map of `pages` a layer (uploading the new ones, reusing
+    /// the layers of maps this frame does not use) and returns the table.
+    fn sync(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        pages: &FlyPages,
+    ) -> Result<Vec<[i32; 2]>, GpuError> {
+        self.frame += 1;
+        let need = pages.maps.len() as u32;
+        let max = device.limits().max_texture_array_layers;
+        if need > max {
+            return Err(GpuError::Render(format!("{need} resident maps in one frame; the adapter holds {max} layers")));
+        }
+        if self.maps.is_none() || need > self.capacity {
+            // room for this frame's maps and as many again
+            self.capacity = (need * 2).clamp(64, max);
+            self.maps = Some(device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("resident maps"),
+                size: wgpu::Extent3d { width: MAP, height: MAP, depth_or_array_layers: self.capacity },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba8UnormSrgb,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            }));
+            self.layers.clear();
+        }
+        let Some(tex) = self.maps.as_ref() else {
+            return Err(GpuError::Render("map array missing".into()));
+        };
+        for k in pages.maps.keys() {
+            if let Some(l) = self.layers.get_mut(k) {
+                l.1 = self.frame;
+            }
+        }
+        let mut free: Vec<u32> = {
+            let used: std::collections::HashSet<u32> = self.layers.values().map(|l| l.0).collect();
+            (0..self.capacity).filter(|l| !used.contains(l)).collect()
+        };
+        for (k, texels) in &pages.maps {
+            if self.layers.contains_key(k) {
+                continue;
+            }
+            let layer = match free.pop() {
+                Some(l) => l,
+                None => {
+                    // the least recently used layer this frame does not need
+                    let victim = self
+                        .layers
+                        .iter()
+                        .filter(|(_, v)| v.1 < self.frame)
+                        .min_by_key(|(_, v)| v.1)
+                        .map(|(k, v)| (*k, v.0));
+                    let Some((vk, vl)) = victim else {
+                        return Err(GpuError::Render("no free map layer".into()));
+                    };
+                    self.layers.remove(&vk);
+                    vl
+                }
+            };
+            if texels.len() != (MAP * MAP * 4) as usize {
+                return Err(GpuError::Render(format!("map z{} x{} y{} has {} bytes", k.z, k.x, k.y, texels.len())));
+            }
+            queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: tex,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d { x: 0, y: 0, z: layer },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                texels,
+                wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(MAP * 4), rows_per_image: Some(MAP) },
+                wgpu::Extent3d { width: MAP, height: MAP, depth_or_array_layers: 1 },
+            );
+            self.layers.insert(*k, (layer, self.frame));
+        }
+        Ok(pages
+            .slots
+            .iter()
+            .map(|s| match s.and_then(|k| self.layers.get(&k).map(|l| (l.0, k.z))) {
+                Some((layer, z)) => [layer as i32, z as i32],
+                None => [-1, 0],
+            })
+            .collect())
+    }
+}
+
+impl GpuRenderer {
+    /// Renders one flight frame with `terrain.wgsl` and reads it back.
+    pub fn render_fly(&mut self, u: &FlyUniform, pages: &FlyPages) -> Result<Frame, RenderError> {
+        let (w, h) = (u.sizes[0], u.sizes[1]);
+        self.check_output(w, h)?;
+        if pages.levels == 0 || pages.levels > MAX_LEVELS || pages.origins.len() != pages.levels as usize {
+            return Err(RenderError::Invalid(format!(
+                "{} levels; the flight shader takes 1..={MAX_LEVELS}",
+                pages.levels
+            )));
+        }
+        let per = pages.per_side as usize;
+        if pages.slots.len() != pages.levels as usize * per * per
+            || u.sizes[2] != pages.levels
+            || u.sizes[3] != pages.per_side
+        {
+            return Err(RenderError::Invalid("the page table does not match the uniforms".into()));
+        }
+        if self.fly.is_none() {
+            self.fly = Some(FlyGpu::new(&self.ctx.device)?);
+        }
+        let device = &self.ctx.device;
+        let queue = &self.ctx.queue;
+        let Some(fg) = self.fly.as_mut() else {
+            return Err(RenderError::Gpu(GpuError::Render("flight pipeline missing".into())));
+        };
+        let slots = fg.sync(device, queue, pages)?;
+        // page table: 32 origins, then the slots
+        let mut bytes: Vec<i32> = Vec::with_capacity(MAX_LEVELS as usize * 4 + slots.len() * 2);
+        for z in 0..MAX_LEVELS as usize {
+            let o = pages.origins.get(z).copied().unwrap_or([0, 0]);
+            bytes.extend_from_slice(&[o[0], o[1], 0, 0]);
+        }
+        for s in &slots {
+            bytes.extend_from_slice(s);
+        }
+        let size = (bytes.len() * 4) as u64;
+        if fg.pages.as_ref().is_none_or(|b| b.size() < size) {
+            fg.pages = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("page table"),
+                size: size.next_power_of_two(),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }));
+        }
+        let (Some(pbuf), Some(maps)) = (fg.pages.as_ref(), fg.maps.as_ref()) else {
+            return Err(RenderError::Gpu(GpuError::Render("flight resources missing".into())));
+        };
+        queue.write_buffer(pbuf, 0, bytemuck::cast_slice(&bytes));
+        queue.write_buffer(&fg.uniform, 0, bytemuck::bytes_of(u));
+        let view = maps.create_view(&wgpu::TextureViewDescriptor {
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("fly"),
+            layout: &fg.layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: fg.uniform.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: pbuf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&view) },
+            ],
+        });
+        self.ensure_target(w, h);
+        let Some(fg) = self.fly.as_ref() else {
+            return Err(RenderError::Gpu(GpuError::Render("flight pipeline missing".into())));
+        };
+        self.pass_and_read(w, h, [0, 0, 0, 255], |pass| {
+            pass.set_pipeline(&fg.pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.draw(0..3, 0..1);
+        })
+    }
+}
