@@ -83,7 +83,8 @@ fn bad_store_input_gives_one_clear_line() {
 
 #[test]
 fn bench_terrain_reports_every_case() {
-    let o = hitex(&["bench", "terrain", "--frames", "2", "--size", "64x48", "--source", "512", "--backends", "cpu", "--json"]);
+    let args = "bench terrain --frames 2 --size 64x48 --source 512 --backends cpu --json";
+    let o = hitex(&args.split(' ').collect::<Vec<_>>());
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let cases: Vec<&str> = v["rows"].as_array().unwrap().iter().filter_map(|r| r["case"].as_str()).collect();
