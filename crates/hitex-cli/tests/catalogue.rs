@@ -1,0 +1,143 @@
+//! The bad-input catalogue: every class of bad input tried here, run through
+//! the `hitex` binary, with what the user sees. The table in
+//! `docs/bad-input.md` is generated from these cases (`HITEX_BLESS=1`
+//! rewrites it), and this test fails when the two differ — so the catalogue
+//! cannot drift from the behaviour.
+
+mod common;
+
+use common::{error_lines, hitex, tmp};
+use std::path::Path;
+
+struct Case {
+    input: &'static str,
+    wrong: &'static str,
+    args: Vec<String>,
+}
+
+fn s(p: &Path) -> String {
+    p.to_string_lossy().into_owned()
+}
+
+fn cases(d: &Path) -> Vec<Case> {
+    let w = |name: &str, bytes: &[u8]| {
+        let p = d.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        s(&p)
+    };
+    let out = s(&d.join("out.png"));
+    let c = |input, wrong, args: &[&str]| Case { input, wrong, args: args.iter().map(|a| a.to_string()).collect() };
+    let mut v = Vec::new();
+    // scenes
+    let f = w("unknown-key.toml", b"[camera]\nposition = [0, 1, 4]\ntarget = [0, 0, 0]\nzoom = 2\n");
+    v.push(c("scene TOML", "unknown key", &["render", &f, "-o", &out]));
+    let f = w("nan.toml", b"[camera]\nposition = [0, nan, 4]\ntarget = [0, 0, 0]\n");
+    v.push(c("scene TOML", "NaN coordinate", &["render", &f, "-o", &out]));
+    let f = w("same.toml", b"[camera]\nposition = [1, 2, 3]\ntarget = [1, 2, 3]\n");
+    v.push(c("scene TOML", "camera at its target", &["render", &f, "-o", &out]));
+    let f = w(
+        "missing-mesh.toml",
+        b"[camera]\nposition = [0, 1, 4]\ntarget = [0, 0, 0]\n[[object]]\nmesh = \"nowhere.obj\"\n",
+    );
+    v.push(c("scene TOML", "mesh file missing", &["render", &f, "-o", &out]));
+    // NURBS files
+    let f = w("garbage.igs", b"this is not IGES\n");
+    v.push(c("IGES", "not IGES at all", &["nurbs", "info", &f]));
+    let f = w("trunc.json", br#"{"format": "hitex-nurbs", "version": 1, "patches": [{"degree": [3, 3], "count": [4, "#);
+    v.push(c("hitex NURBS JSON", "truncated", &["nurbs", "info", &f]));
+    let f = w("bad.obj", b"cstype bspline\ndeg 3 3\nsurf 0 1 0 1 1 2 3\nparm u 0 0 1 1\nend\n");
+    v.push(c("OBJ free-form", "control points missing", &["nurbs", "info", &f]));
+    // BTF
+    let mut h = b"HBTF".to_vec();
+    h.extend_from_slice(&[1, 0, 0, 0]);
+    let f = w("short.hbtf", &h);
+    v.push(c(".hbtf", "header cut short", &["btf", "info", &f]));
+    let mut h = b"HBTF".to_vec();
+    for x in [1u32, 76, 1024, 1024, 8, 16, 0] {
+        h.extend_from_slice(&x.to_le_bytes());
+    }
+    for t in 0..8 {
+        h.extend_from_slice(&(t as f32 * 10.0).to_le_bytes());
+    }
+    h.extend_from_slice(&(1024u64 * 1024 * 16384 * 3).to_le_bytes());
+    h.extend_from_slice(&0u32.to_le_bytes());
+    let f = w("huge.hbtf", &h);
+    v.push(c(".hbtf", "header claims 1024×1024 texels × 16,384 images", &["btf", "info", &f]));
+    let f = w("magic.hbtf", b"GIF89a certainly not a BTF file at all");
+    v.push(c(".hbtf", "wrong magic", &["btf", "info", &f]));
+    v.push(c(
+        "BTF grid",
+        "polar angles decreasing",
+        &["btf", "synth", "knit", "-o", &s(&d.join("x.hbtf")), "--theta", "30,10"],
+    ));
+    v.push(c("BTF material", "unknown name", &["btf", "synth", "velvet", "-o", &s(&d.join("x.hbtf"))]));
+    let set = d.join("set");
+    std::fs::create_dir_all(&set).unwrap();
+    image::RgbImage::new(4, 4).save(set.join("tl000_pl000_tv000_pv000.png")).unwrap();
+    image::RgbImage::new(8, 8).save(set.join("tl000_pl000_tv000_pv180.png")).unwrap();
+    v.push(c("BTF image set", "images of different sizes", &["btf", "import", &s(&set), "-o", &s(&d.join("x.hbtf"))]));
+    // terrain
+    let f = w("trunc.tif", b"II*\x00\x08\x00\x00\x00\x10\x00");
+    v.push(c("GeoTIFF DEM", "truncated", &["terrain", "render", "--dem", &f, "-o", &out]));
+    let f = w("N00E000.hgt", &[0u8; 1001]);
+    v.push(c("SRTM .hgt", "size is no SRTM grid", &["terrain", "render", "--dem", &f, "-o", &out]));
+    let f = w("bad.asc", b"ncols 3\nnrows two\n");
+    v.push(c("ESRI ASCII grid", "header value not a number", &["terrain", "render", "--dem", &f, "-o", &out]));
+    let f = w("bad.npy", b"\x93NUMPY\x01\x00\x10\x00{'descr': '<f4',");
+    v.push(c("numpy .npy", "header cut short", &["terrain", "render", "--dem", &f, "-o", &out]));
+    v.push(c("GST store", "no metadata.json", &["terrain", "fly", &s(d), "-o", &s(&d.join("frames"))]));
+    let store = d.join("store");
+    std::fs::create_dir_all(&store).unwrap();
+    std::fs::write(store.join("metadata.json"), r#"{"format": "hitex-gst", "version": 7}"#).unwrap();
+    v.push(c(
+        "GST store",
+        "metadata of another format version",
+        &["terrain", "fly", &s(&store), "-o", &s(&d.join("frames"))],
+    ));
+    v.push(c("terrain build", "no imagery given", &["terrain", "build", "-o", &s(&d.join("st"))]));
+    v.push(c(
+        "output image",
+        "folder does not exist",
+        &["btf", "render", "knit", "--size", "8x8", "-o", &s(&d.join("no/such/dir/x.png")), "--backend", "cpu"],
+    ));
+    v
+}
+
+#[test]
+fn the_catalogue_matches_the_behaviour() {
+    let d = tmp("catalogue");
+    let prefix = s(&d);
+    let mut table = String::from(
+        "# Bad input: what hitex does with it\n\n\
+         Generated by `crates/hitex-cli/tests/catalogue.rs` from the cases it runs (`HITEX_BLESS=1 cargo test -p hitex-cli --test catalogue` rewrites this file; the test fails when it and the behaviour differ). Paths are shown relative to the test's folder.\n\n\
+         | input | what is wrong | exit code | what the user sees |\n|---|---|---|---|\n",
+    );
+    for case in cases(&d) {
+        let args: Vec<&str> = case.args.iter().map(String::as_str).collect();
+        let o = hitex(&args);
+        let code = o.status.code().unwrap_or(-1);
+        // clap's own usage errors start with "error:"; ours with "hitex:"
+        let mut lines = error_lines(&o);
+        if lines.is_empty() {
+            lines = String::from_utf8_lossy(&o.stderr)
+                .lines()
+                .filter(|l| l.starts_with("error:"))
+                .map(str::to_string)
+                .collect();
+        }
+        assert_eq!(lines.len(), 1, "{} / {}: expected one error line, got {lines:?}", case.input, case.wrong);
+        assert!(code == 1 || code == 2, "{} / {}: exit {code}", case.input, case.wrong);
+        let line = lines[0].replace(&format!("{prefix}/"), "").replace('|', "\\|");
+        table += &format!("| {} | {} | {code} | `{line}` |\n", case.input, case.wrong);
+    }
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/bad-input.md");
+    if std::env::var("HITEX_BLESS").is_ok_and(|v| v == "1") {
+        std::fs::write(&path, &table).unwrap();
+        return;
+    }
+    let have = std::fs::read_to_string(&path).unwrap_or_default();
+    assert_eq!(
+        have, table,
+        "docs/bad-input.md differs from the behaviour; rerun with HITEX_BLESS=1 and review the diff"
+    );
+}
