@@ -183,6 +183,21 @@ impl Layout {
         m
     }
 
+    /// The angular axes the filter does not interpolate (walked by the
+    /// shader with two neighbours each), and how many there are.
+    pub fn walked_axes(self) -> ([usize; 4], usize) {
+        let filtered = self.filtered_mask();
+        let mut walk = [0usize; 4];
+        let mut n = 0;
+        for a in 2..6 {
+            if filtered & (1 << a) == 0 {
+                walk[n] = a;
+                n += 1;
+            }
+        }
+        (walk, n)
+    }
+
     /// Codebook reads per pixel: 4 index corners × 2^(angular axes not filtered).
     pub fn codebook_reads(self) -> u32 {
         4 * (1 << (4 - self.filtered_mask().count_ones()))
@@ -426,14 +441,7 @@ impl Codebook {
         let spec = self.layout.spec();
         let filtered = self.layout.filtered_mask();
         // the angular axes the shader walks, each with two neighbours
-        let mut walk = [0usize; 4];
-        let mut nwalk = 0;
-        for a in 2..6 {
-            if filtered & (1 << a) == 0 {
-                walk[nwalk] = a;
-                nwalk += 1;
-            }
-        }
+        let (walk, nwalk) = self.layout.walked_axes();
         let mut acc = Vec3::ZERO;
         for combo in 0..(1u32 << nwalk) {
             // discrete index per axis and the combination's weight
@@ -481,17 +489,9 @@ impl Codebook {
     /// angles — computed once per pixel instead of once per read.
     pub fn plan(&self, l: &AngleLerps) -> PixelPlan {
         let spec = self.layout.spec();
-        let filtered = self.layout.filtered_mask();
         let mut plan = PixelPlan::default();
         // walked combinations
-        let mut walk = [0usize; 4];
-        let mut nwalk = 0;
-        for a in 2..6 {
-            if filtered & (1 << a) == 0 {
-                walk[nwalk] = a;
-                nwalk += 1;
-            }
-        }
+        let (walk, nwalk) = self.layout.walked_axes();
         for combo in 0..(1u32 << nwalk) {
             let (mut k, mut w) = (0u32, 1.0f32);
             for (bit, &a) in walk[..nwalk].iter().enumerate() {
