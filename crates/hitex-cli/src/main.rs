@@ -20,6 +20,10 @@ use std::time::Instant;
 #[derive(Parser)]
 #[command(name = "hitex", version, about, long_about = None)]
 struct Cli {
+    /// Largest allocation any input file may ask for (e.g. 512M, 2G; default
+    /// 8G or HITEX_MAX_MEMORY): files claiming more are refused before reading.
+    #[arg(long, global = true, value_name = "BYTES", value_parser = hitex_io::limits::parse_bytes)]
+    max_memory: Option<u64>,
     #[command(subcommand)]
     command: Command,
 }
@@ -169,36 +173,66 @@ impl From<RenderError> for CliError {
 }
 
 /// One of the two backends, chosen at run time.
-pub enum AnyRenderer {
+pub enum Engine {
     /// CPU reference renderer.
     Cpu(CpuRenderer),
     /// wgpu renderer.
     Gpu(Box<GpuRenderer>),
 }
 
+/// The renderer of a command: the backend asked for, and with `auto` the
+/// CPU backend taking over when the GPU fails (no adapter, device lost, out
+/// of memory, hang), saying so once on stderr.
+pub struct AnyRenderer {
+    backend: Engine,
+    auto: bool,
+}
+
 impl AnyRenderer {
     /// Opens the requested backend; `auto` falls back to the CPU and says so on stderr.
+    ///
+    /// `HITEX_GPU_FAULT=device-lost` destroys the GPU device right after it
+    /// opens, as a driver reset would (for testing the fallback paths).
     pub fn open(choice: BackendChoice) -> Result<Self, CliError> {
-        match choice {
-            BackendChoice::Cpu => Ok(Self::Cpu(CpuRenderer::new())),
-            BackendChoice::Gpu => {
-                GpuRenderer::new().map(|g| Self::Gpu(Box::new(g))).map_err(|e| CliError::Internal(e.to_string()))
+        let gpu = || -> Result<GpuRenderer, hitex_render::GpuError> {
+            let g = GpuRenderer::new()?;
+            if std::env::var("HITEX_GPU_FAULT").is_ok_and(|f| f == "device-lost") {
+                g.context().lose_device();
             }
-            BackendChoice::Auto => match GpuRenderer::new() {
-                Ok(g) => Ok(Self::Gpu(Box::new(g))),
+            Ok(g)
+        };
+        let backend = match choice {
+            BackendChoice::Cpu => Engine::Cpu(CpuRenderer::new()),
+            BackendChoice::Gpu => Engine::Gpu(Box::new(gpu().map_err(|e| CliError::Internal(e.to_string()))?)),
+            BackendChoice::Auto => match gpu() {
+                Ok(g) => Engine::Gpu(Box::new(g)),
                 Err(e) => {
                     let first = e.to_string().lines().next().unwrap_or_default().to_string();
                     eprintln!("hitex: GPU backend unavailable ({first}); falling back to the CPU backend");
-                    Ok(Self::Cpu(CpuRenderer::new()))
+                    Engine::Cpu(CpuRenderer::new())
                 }
             },
-        }
+        };
+        Ok(Self { backend, auto: choice == BackendChoice::Auto })
     }
     /// Backend description.
     pub fn name(&self) -> String {
-        match self {
-            Self::Cpu(c) => hitex_render::Renderer::name(c),
-            Self::Gpu(g) => format!("gpu: {}", g.adapter()),
+        match &self.backend {
+            Engine::Cpu(c) => hitex_render::Renderer::name(c),
+            Engine::Gpu(g) => format!("gpu: {}", g.adapter()),
+        }
+    }
+    /// Runs `f` on the GPU or the CPU; a GPU failure under `auto` moves this
+    /// renderer to the CPU for good and runs `f` again there.
+    fn run(&mut self, mut f: impl FnMut(&mut Engine) -> Result<Frame, RenderError>) -> Result<Frame, RenderError> {
+        match f(&mut self.backend) {
+            Err(RenderError::Gpu(e)) if self.auto => {
+                let first = e.to_string().lines().next().unwrap_or_default().to_string();
+                eprintln!("hitex: GPU backend failed ({first}); continuing on the CPU backend");
+                self.backend = Engine::Cpu(CpuRenderer::new());
+                f(&mut self.backend)
+            }
+            r => r,
         }
     }
     /// Renders one frame of a NURBS model.
@@ -209,10 +243,10 @@ impl AnyRenderer {
         w: u32,
         h: u32,
     ) -> Result<Frame, RenderError> {
-        match self {
-            Self::Cpu(c) => c.render_nurbs(scene, camera, w, h),
-            Self::Gpu(g) => g.render_nurbs(scene, camera, w, h),
-        }
+        self.run(|b| match b {
+            Engine::Cpu(c) => c.render_nurbs(scene, camera, w, h),
+            Engine::Gpu(g) => g.render_nurbs(scene, camera, w, h),
+        })
     }
     /// Renders one frame of a BTF surface lit by a point light at `light`.
     pub fn render_btf(
@@ -223,10 +257,10 @@ impl AnyRenderer {
         w: u32,
         h: u32,
     ) -> Result<Frame, RenderError> {
-        match self {
-            Self::Cpu(c) => c.render_btf(scene, camera, light, w, h),
-            Self::Gpu(g) => g.render_btf(scene, camera, light, w, h),
-        }
+        self.run(|b| match b {
+            Engine::Cpu(c) => c.render_btf(scene, camera, light, w, h),
+            Engine::Gpu(g) => g.render_btf(scene, camera, light, w, h),
+        })
     }
     /// Renders one flight frame over a GST store.
     pub fn render_fly(
@@ -234,10 +268,10 @@ impl AnyRenderer {
         u: &hitex_render::terrain::FlyUniform,
         pages: &hitex_render::terrain::FlyPages,
     ) -> Result<Frame, RenderError> {
-        match self {
-            Self::Cpu(_) => hitex_render::cpu::terrain::render_fly(u, pages),
-            Self::Gpu(g) => g.render_fly(u, pages),
-        }
+        self.run(|b| match b {
+            Engine::Cpu(_) => hitex_render::cpu::terrain::render_fly(u, pages),
+            Engine::Gpu(g) => g.render_fly(u, pages),
+        })
     }
     /// Renders one frame.
     pub fn render(
@@ -247,10 +281,10 @@ impl AnyRenderer {
         w: u32,
         h: u32,
     ) -> Result<Frame, RenderError> {
-        match self {
-            Self::Cpu(c) => c.render_view(scene, camera, w, h),
-            Self::Gpu(g) => g.render_view(scene, camera, w, h),
-        }
+        self.run(|b| match b {
+            Engine::Cpu(c) => c.render_view(scene, camera, w, h),
+            Engine::Gpu(g) => g.render_view(scene, camera, w, h),
+        })
     }
 }
 
@@ -264,6 +298,9 @@ pub fn save(frame: &Frame, path: &Path) -> Result<(), CliError> {
 }
 
 fn run(cli: Cli) -> Result<(), CliError> {
+    if let Some(cap) = cli.max_memory {
+        hitex_io::limits::set_max_bytes(cap);
+    }
     match cli.command {
         Command::Demo { out, backend, size, print_scene } => {
             if print_scene {

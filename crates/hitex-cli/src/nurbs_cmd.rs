@@ -236,12 +236,13 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             let ext = output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
             let text = match ext.as_deref() {
                 Some("json") => hitex_io::nurbs_json::to_nurbs_json(&m.surfaces),
+                Some("obj") => hitex_io::obj_freeform::to_obj_freeform(&m.surfaces),
                 Some("igs") | Some("iges") => {
                     hitex_io::nurbs_json::to_iges(&m.surfaces, &format!("{} exported by hitex", m.name))
                 }
                 _ => {
                     return Err(CliError::Input(format!(
-                        "{}: the extension must be .igs, .iges or .json",
+                        "{}: the extension must be .igs, .iges, .obj or .json",
                         output.display()
                     )));
                 }

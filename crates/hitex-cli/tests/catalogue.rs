@@ -85,6 +85,19 @@ fn cases(d: &Path) -> Vec<Case> {
     v.push(c("ESRI ASCII grid", "header value not a number", &["terrain", "render", "--dem", &f, "-o", &out]));
     let f = w("bad.npy", b"\x93NUMPY\x01\x00\x10\x00{'descr': '<f4',");
     v.push(c("numpy .npy", "header cut short", &["terrain", "render", "--dem", &f, "-o", &out]));
+    v.push(c(
+        "GeoTIFF DEM",
+        "header claims 16384² float samples, file of 138 bytes",
+        &["terrain", "render", "--dem", &w("claim.tif", &tiff_claim()), "-o", &out],
+    ));
+    v.push(c(
+        "PNG imagery",
+        "header claims 16384×16384, file of 65 bytes",
+        &["terrain", "spans", "--image", &w("claim.png", &png_claim()), "--frames", "1", "-o", &out],
+    ));
+    let hb = w("ok.hbtf", include_bytes!("../../../fuzz/seeds/hbtf/knit-4.hbtf"));
+    v.push(c(".hbtf", "valid, but beyond --max-memory 1K", &["--max-memory", "1K", "btf", "info", &hb]));
+    v.push(c("--max-memory", "not a size", &["--max-memory", "lots", "btf", "info", &hb]));
     v.push(c("GST store", "no metadata.json", &["terrain", "fly", &s(d), "-o", &s(&d.join("frames"))]));
     let store = d.join("store");
     std::fs::create_dir_all(&store).unwrap();
@@ -101,6 +114,61 @@ fn cases(d: &Path) -> Vec<Case> {
         &["btf", "render", "knit", "--size", "8x8", "-o", &s(&d.join("no/such/dir/x.png")), "--backend", "cpu"],
     ));
     v
+}
+
+/// A little-endian TIFF whose one IFD declares a 16384×16384 float raster
+/// backed by a 4-byte strip.
+fn tiff_claim() -> Vec<u8> {
+    let entries: [(u16, u16, u32); 10] = [
+        (256, 4, 16384), // ImageWidth, LONG
+        (257, 4, 16384), // ImageLength
+        (258, 3, 32),    // BitsPerSample, SHORT
+        (259, 3, 1),     // Compression: none
+        (262, 3, 1),     // Photometric: black is zero
+        (273, 4, 8),     // StripOffsets
+        (277, 3, 1),     // SamplesPerPixel
+        (278, 4, 16384), // RowsPerStrip
+        (279, 4, 4),     // StripByteCounts
+        (339, 3, 3),     // SampleFormat: IEEE float
+    ];
+    let mut b = b"II*\x00".to_vec();
+    b.extend_from_slice(&12u32.to_le_bytes());
+    b.extend_from_slice(&[0; 4]); // the "strip"
+    b.extend_from_slice(&(entries.len() as u16).to_le_bytes());
+    for (tag, ty, val) in entries {
+        b.extend_from_slice(&tag.to_le_bytes());
+        b.extend_from_slice(&ty.to_le_bytes());
+        b.extend_from_slice(&1u32.to_le_bytes());
+        if ty == 3 {
+            b.extend_from_slice(&(val as u16).to_le_bytes());
+            b.extend_from_slice(&[0, 0]);
+        } else {
+            b.extend_from_slice(&val.to_le_bytes());
+        }
+    }
+    b.extend_from_slice(&0u32.to_le_bytes());
+    b
+}
+
+/// A PNG whose header declares 16384×16384 RGBA over one empty data chunk.
+fn png_claim() -> Vec<u8> {
+    let chunk = |out: &mut Vec<u8>, ty: &[u8], data: &[u8]| {
+        out.extend_from_slice(&(data.len() as u32).to_be_bytes());
+        let start = out.len();
+        out.extend_from_slice(ty);
+        out.extend_from_slice(data);
+        let crc = hitex_io::btf_file::crc32(&out[start..]);
+        out.extend_from_slice(&crc.to_be_bytes());
+    };
+    let mut b = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut ihdr = Vec::new();
+    ihdr.extend_from_slice(&16384u32.to_be_bytes());
+    ihdr.extend_from_slice(&16384u32.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 6, 0, 0, 0]);
+    chunk(&mut b, b"IHDR", &ihdr);
+    chunk(&mut b, b"IDAT", &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01]);
+    chunk(&mut b, b"IEND", &[]);
+    b
 }
 
 #[test]

@@ -292,6 +292,7 @@ fn read_header(r: &mut impl Read, file_len: u64, path: &Path) -> Result<HbtfHead
             "header declares a payload of {payload_bytes} bytes but only {remaining} follow the header (truncated file)"
         )));
     }
+    crate::limits::check_cap("the payload", Some(payload_bytes)).map_err(fmt)?;
     Ok(HbtfHeader { version, header_bytes, width, height, grid, flags, payload_bytes, crc32: crc })
 }
 

@@ -657,6 +657,9 @@ pub fn import_image_set(
             None => {
                 (sw, sh) = size.map_or((w, h), |s| (s, s));
                 check_shape(sw, sh)?;
+                let claim = crate::limits::product(&[unique.len() as u64, sw as u64, sh as u64, 3]);
+                crate::limits::check_cap(&format!("{} images of {sw}x{sh} texels", unique.len()), claim)
+                    .map_err(fmt)?;
                 store.reserve_exact(unique.len() * sw as usize * sh as usize * 3);
                 first = Some((w, h, at.clone()));
             }

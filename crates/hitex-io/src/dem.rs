@@ -5,27 +5,38 @@
 
 use crate::IoError;
 use crate::geotiff::{GeoRaster, MAX_SAMPLES, load_geotiff};
+use crate::limits::DEFLATE_RATIO;
 use std::io::Read;
 use std::path::Path;
 
 /// Reads an elevation model, choosing the format by extension.
 pub fn load_elevation(path: &Path) -> Result<GeoRaster, IoError> {
-    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
     if ext == "tif" || ext == "tiff" {
         return load_geotiff(path);
     }
     let meta = std::fs::metadata(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
     if meta.len() > 4 * MAX_SAMPLES {
-        return Err(fmt(format!("file of {} bytes is beyond the size limit", meta.len())));
+        let message = format!("file of {} bytes is beyond the size limit", meta.len());
+        return Err(IoError::Format { path: path.to_path_buf(), message });
     }
     let bytes = std::fs::read(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
+    parse_elevation(&bytes, path)
+}
+
+/// Parses an elevation model held in memory, choosing the format by the
+/// extension of `path` (which is also the file named in errors; an `.hgt`
+/// file's name gives its corner).
+pub fn parse_elevation(bytes: &[u8], path: &Path) -> Result<GeoRaster, IoError> {
+    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
     let name = path.file_stem().and_then(|s| s.to_str()).unwrap_or("");
     match ext.as_str() {
-        "hgt" => parse_hgt(&bytes, name).map_err(fmt),
-        "asc" => parse_ascii_grid(&String::from_utf8_lossy(&bytes)).map_err(fmt),
-        "npy" => parse_npy(&bytes).map(|(w, h, data)| plain(w, h, data)).map_err(fmt),
-        "npz" => parse_npz(&bytes).map_err(fmt),
+        "tif" | "tiff" => crate::geotiff::parse_geotiff(std::io::Cursor::new(bytes), bytes.len() as u64, path),
+        "hgt" => parse_hgt(bytes, name).map_err(fmt),
+        "asc" => parse_ascii_grid(&String::from_utf8_lossy(bytes)).map_err(fmt),
+        "npy" => parse_npy(bytes).map(|(w, h, data)| plain(w, h, data)).map_err(fmt),
+        "npz" => parse_npz(bytes).map_err(fmt),
         _ => Err(fmt("unknown elevation format (expected .tif, .hgt, .asc, .npy or .npz)".into())),
     }
 }
@@ -115,6 +126,15 @@ pub fn parse_ascii_grid(text: &str) -> Result<GeoRaster, String> {
         return Err(format!("ncols {w}, nrows {h}, cellsize {cell} are not a usable grid"));
     }
     let (w, h) = (w as usize, h as usize);
+    // every value takes at least one digit and one separator
+    if w * h > text.len() / 2 + 1 {
+        return Err(format!(
+            "ncols × nrows = {} values declared, but {} bytes of text hold at most {}",
+            w * h,
+            text.len(),
+            text.len() / 2 + 1
+        ));
+    }
     let (x0, y0) =
         match (header.get("xllcorner"), header.get("xllcenter"), header.get("yllcorner"), header.get("yllcenter")) {
             (Some(&x), _, Some(&y), _) => (x, y),
@@ -182,7 +202,7 @@ pub fn parse_npy(bytes: &[u8]) -> Result<(u32, u32, Vec<f32>), String> {
         [h, w] => (*h, *w),
         _ => return Err(format!("a {}-dimensional array is not an elevation grid", dims.len())),
     };
-    if w == 0 || h == 0 || (w as u64) * (h as u64) > MAX_SAMPLES {
+    if w == 0 || h == 0 || (w as u64).checked_mul(h as u64).is_none_or(|n| n > MAX_SAMPLES) {
         return Err(format!("shape {h}×{w} is outside the limit"));
     }
     let (little, kind, size) = {
@@ -191,13 +211,18 @@ pub fn parse_npy(bytes: &[u8]) -> Result<(u32, u32, Vec<f32>), String> {
             return Err(format!("dtype '{descr}' is not understood"));
         }
         let little = b[0] != b'>';
-        let size: usize = descr[2..].parse().map_err(|_| format!("dtype '{descr}' is not understood"))?;
+        let size: usize =
+            descr.get(2..).and_then(|d| d.parse().ok()).ok_or_else(|| format!("dtype '{descr}' is not understood"))?;
         (little, b[1], size)
     };
+    if !matches!(size, 1 | 2 | 4 | 8) {
+        return Err(format!("dtype '{descr}' is not supported"));
+    }
     let body = &bytes[start + hlen..];
     if body.len() < w * h * size {
         return Err(format!("{} data bytes for {h}×{w} values of {size} bytes", body.len()));
     }
+    crate::limits::check_cap(&format!("a {h}×{w} array"), Some(w as u64 * h as u64 * 4))?;
     let val = |c: &[u8]| -> Option<f32> {
         let mut a = [0u8; 8];
         a[..c.len()].copy_from_slice(c);
@@ -236,8 +261,14 @@ pub fn parse_npz(bytes: &[u8]) -> Result<GeoRaster, String> {
         if f.size() > 8 * MAX_SAMPLES {
             return Err(format!("entry {name} of {} bytes is beyond the size limit", f.size()));
         }
-        let mut buf = Vec::with_capacity(f.size() as usize);
-        f.read_to_end(&mut buf).map_err(|e| format!("entry {name}: {e}"))?;
+        // the declared size is only a claim: reserve what the compressed bytes can give, read at most the claim
+        let what = format!("entry {name}");
+        let claim = crate::limits::check_claim(&what, Some(f.size()), f.compressed_size(), DEFLATE_RATIO)?;
+        let mut buf = Vec::with_capacity(claim.min(1 << 24) as usize);
+        (&mut f).take(claim).read_to_end(&mut buf).map_err(|e| format!("entry {name}: {e}"))?;
+        if buf.len() as u64 != claim {
+            return Err(format!("entry {name}: {} bytes inflated, {claim} declared", buf.len()));
+        }
         let arr = parse_npy(&buf).map_err(|e| format!("entry {name}: {e}"))?;
         arrays.push((name, arr));
     }

@@ -3,6 +3,7 @@
 //! ModelPixelScale, GeoKeys). Read through the `tiff` crate.
 
 use crate::IoError;
+use std::io::{Read, Seek};
 use std::path::Path;
 use tiff::decoder::{Decoder, DecodingResult};
 use tiff::tags::Tag;
@@ -90,22 +91,38 @@ impl GeoRaster {
 
 /// Reads a GeoTIFF; errors name the file.
 pub fn load_geotiff(path: &Path) -> Result<GeoRaster, IoError> {
-    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
     let file = std::fs::File::open(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
-    let mut d = Decoder::new(std::io::BufReader::new(file)).map_err(|e| fmt(format!("not a TIFF file: {e}")))?;
+    let len = file.metadata().map_err(|source| IoError::Read { path: path.to_path_buf(), source })?.len();
+    parse_geotiff(std::io::BufReader::new(file), len, path)
+}
+
+/// Reads a GeoTIFF of `len` bytes from `reader`; `path` is the file named in
+/// errors. The declared raster is checked against [`MAX_SAMPLES`], against
+/// what `len` bytes can hold and against the memory cap before it is decoded.
+pub fn parse_geotiff<R: Read + Seek>(reader: R, len: u64, path: &Path) -> Result<GeoRaster, IoError> {
+    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+    let mut limits = tiff::decoder::Limits::default();
+    let cap = usize::try_from(crate::limits::max_bytes()).unwrap_or(usize::MAX);
+    limits.decoding_buffer_size = cap;
+    limits.intermediate_buffer_size = cap.min(1 << 30);
+    let mut d = Decoder::new(reader).map_err(|e| fmt(format!("not a TIFF file: {e}")))?.with_limits(limits);
     let (w, h) = d.dimensions().map_err(|e| fmt(e.to_string()))?;
-    let bands = match d.colortype().map_err(|e| fmt(e.to_string()))? {
-        tiff::ColorType::Gray(_) => 1,
-        tiff::ColorType::GrayA(_) => 2,
-        tiff::ColorType::RGB(_) => 3,
-        tiff::ColorType::RGBA(_) => 4,
-        tiff::ColorType::Multiband { num_samples, .. } => num_samples as usize,
+    let (bands, bits) = match d.colortype().map_err(|e| fmt(e.to_string()))? {
+        tiff::ColorType::Gray(b) => (1, b),
+        tiff::ColorType::GrayA(b) => (2, b),
+        tiff::ColorType::RGB(b) => (3, b),
+        tiff::ColorType::RGBA(b) => (4, b),
+        tiff::ColorType::Multiband { bit_depth, num_samples } => (num_samples as usize, bit_depth),
         other => return Err(fmt(format!("unsupported sample layout {other:?}"))),
     };
     let samples = w as u64 * h as u64 * bands as u64;
     if w == 0 || h == 0 || bands == 0 || samples > MAX_SAMPLES {
         return Err(fmt(format!("{w}×{h} pixels of {bands} bands is outside the limit of {MAX_SAMPLES} samples")));
     }
+    let what = format!("a {w}×{h} raster of {bands} band{}", if bands == 1 { "" } else { "s" });
+    let raw = samples * (bits as u64).div_ceil(8).max(1);
+    crate::limits::check_claim(&what, Some(raw), len, crate::limits::ANY_RATIO).map_err(fmt)?;
+    crate::limits::check_cap(&what, Some(raw + samples * 4)).map_err(fmt)?;
     let tie =
         d.get_tag_f64_vec(Tag::ModelTiepointTag).map_err(|_| fmt("no ModelTiepoint tag: not georeferenced".into()))?;
     let scale = d

@@ -278,9 +278,13 @@ pub fn build_store(
         ))));
     }
     std::fs::create_dir_all(out).map_err(|e| werr(out, e.to_string()))?;
+    // the description is written last: a build that fails part-way leaves no store that opens as complete
+    let described = out.join("metadata.json");
+    match std::fs::remove_file(&described) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(werr(&described, e.to_string())),
+        _ => {}
+    }
     let json = serde_json::to_string_pretty(meta).map_err(|e| werr(out, e.to_string()))?;
-    write_atomic(&out.join("metadata.json"), json.as_bytes())?;
-    write_atomic(&out.join("tilemapresource.xml"), meta.tms_xml().as_bytes())?;
     // split level: the coarsest with at least n maps
     let split = (0..meta.levels)
         .find(|&z| {
@@ -323,6 +327,8 @@ pub fn build_store(
         }
         report.built_top = true;
     }
+    write_atomic(&out.join("tilemapresource.xml"), meta.tms_xml().as_bytes())?;
+    write_atomic(&described, json.as_bytes())?;
     Ok(report)
 }
 
@@ -376,7 +382,25 @@ fn finest_tile(src: &dyn TileSource, x: u32, y: u32) -> Result<Vec<u8>, IoError>
 /// Reads a map of the store as RGBA8, checking its size.
 pub fn read_tile(meta: &StoreMeta, root: &Path, z: u32, x: u32, y: u32) -> Result<Vec<u8>, IoError> {
     let path = meta.tile_path(root, z, x, y);
-    let img = crate::load_image(&path, ColorSpace::Srgb)?;
+    let len = std::fs::metadata(&path).map_err(|source| IoError::Read { path: path.clone(), source })?.len();
+    if len > MAX_TILE_FILE_BYTES {
+        let message =
+            format!("map file of {len} bytes; a {TILE}x{TILE} map never needs more than {MAX_TILE_FILE_BYTES}");
+        return Err(IoError::Format { path, message });
+    }
+    let bytes = std::fs::read(&path).map_err(|source| IoError::Read { path: path.clone(), source })?;
+    decode_tile(&bytes, &path)
+}
+
+/// Largest map file accepted (a 256×256 RGBA PNG stored without compression
+/// is 263 KiB).
+pub const MAX_TILE_FILE_BYTES: u64 = 4 << 20;
+
+/// Decodes one map file held in memory as RGBA8, checking its size; `path`
+/// is the file named in errors.
+pub fn decode_tile(bytes: &[u8], path: &Path) -> Result<Vec<u8>, IoError> {
+    let path = path.to_path_buf();
+    let img = crate::decode_image(bytes, &path, ColorSpace::Srgb)?;
     if img.width() != TILE || img.height() != TILE {
         return Err(IoError::Format {
             path,
@@ -427,8 +451,15 @@ fn parent_tile(meta: &StoreMeta, root: &Path, z: u32, x: u32, y: u32) -> Result<
 pub fn open_store(root: &Path) -> Result<StoreMeta, IoError> {
     let path = root.join("metadata.json");
     let text = std::fs::read_to_string(&path).map_err(|source| IoError::Read { path: path.clone(), source })?;
+    parse_store_meta(&text, &path)
+}
+
+/// Parses and checks a store's `metadata.json` held in memory; `path` is the
+/// file named in errors.
+pub fn parse_store_meta(text: &str, path: &Path) -> Result<StoreMeta, IoError> {
+    let path = path.to_path_buf();
     let meta: StoreMeta =
-        serde_json::from_str(&text).map_err(|e| IoError::Format { path: path.clone(), message: e.to_string() })?;
+        serde_json::from_str(text).map_err(|e| IoError::Format { path: path.clone(), message: e.to_string() })?;
     let bad = |m: String| Err(IoError::Format { path: path.clone(), message: m });
     if meta.format != "hitex-gst" || meta.version != 1 {
         return bad(format!("format '{}' version {}: not a hitex GST store (version 1)", meta.format, meta.version));

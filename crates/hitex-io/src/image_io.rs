@@ -8,32 +8,47 @@ use std::path::Path;
 /// Largest image file accepted, in bytes (a sanity cap against hostile input).
 pub const MAX_IMAGE_FILE_BYTES: u64 = 1 << 30;
 
-/// Reads a PNG or JPEG file into an RGBA8 image. The declared dimensions are
-/// checked against [`hitex_core::texture::image::MAX_IMAGE_SIDE`] before any
-/// pixel is decoded.
+/// Reads a PNG or JPEG file into an RGBA8 image (see [`decode_image`]).
 pub fn load_image(path: &Path, color_space: ColorSpace) -> Result<Image, IoError> {
-    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
     let meta = std::fs::metadata(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
     if meta.len() > MAX_IMAGE_FILE_BYTES {
-        return Err(fmt(format!("file of {} bytes exceeds the {MAX_IMAGE_FILE_BYTES}-byte limit", meta.len())));
+        let message = format!("file of {} bytes exceeds the {MAX_IMAGE_FILE_BYTES}-byte limit", meta.len());
+        return Err(IoError::Format { path: path.to_path_buf(), message });
     }
-    let reader = image::ImageReader::open(path)
-        .map_err(|source| IoError::Read { path: path.to_path_buf(), source })?
-        .with_guessed_format()
-        .map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
-    if reader.format().is_none() {
-        return Err(fmt("not a PNG or JPEG image (unrecognised signature)".into()));
-    }
-    let (w, h) = reader.into_dimensions().map_err(|e| fmt(format!("cannot read the image header: {e}")))?;
+    let bytes = std::fs::read(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
+    decode_image(&bytes, path, color_space)
+}
+
+/// Decodes a PNG or JPEG held in memory; `path` is the file named in errors.
+/// The declared dimensions are checked against
+/// [`hitex_core::texture::image::MAX_IMAGE_SIDE`], against what the file's
+/// length can hold and against the memory cap before any pixel is decoded.
+pub fn decode_image(bytes: &[u8], path: &Path, color_space: ColorSpace) -> Result<Image, IoError> {
+    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+    let reader = || {
+        image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|source| IoError::Read { path: path.to_path_buf(), source })
+    };
+    let probe = reader()?;
+    let ratio = match probe.format() {
+        Some(image::ImageFormat::Png) => crate::limits::DEFLATE_RATIO,
+        Some(image::ImageFormat::Jpeg) => crate::limits::ANY_RATIO,
+        _ => return Err(fmt("not a PNG or JPEG image (unrecognised signature)".into())),
+    };
+    let decoder = probe.into_decoder().map_err(|e| fmt(format!("cannot read the image header: {e}")))?;
+    let (w, h) = image::ImageDecoder::dimensions(&decoder);
+    let raw = image::ImageDecoder::total_bytes(&decoder);
+    drop(decoder);
     let side = hitex_core::texture::image::MAX_IMAGE_SIDE;
     if w == 0 || h == 0 || w > side || h > side {
         return Err(fmt(format!("declared size {w}x{h} is outside 1..={side} per side")));
     }
-    let reader = image::ImageReader::open(path)
-        .map_err(|source| IoError::Read { path: path.to_path_buf(), source })?
-        .with_guessed_format()
-        .map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
-    let img = reader.decode().map_err(|e| fmt(format!("cannot decode the image: {e}")))?.into_rgba8();
+    // the decoded samples must come out of the file's bytes; with the RGBA8 copy they must fit the cap
+    let what = format!("a {w}x{h} image");
+    crate::limits::check_claim(&what, Some(raw), bytes.len() as u64, ratio).map_err(fmt)?;
+    crate::limits::check_cap(&what, raw.checked_add(w as u64 * h as u64 * 4)).map_err(fmt)?;
+    let img = reader()?.decode().map_err(|e| fmt(format!("cannot decode the image: {e}")))?.into_rgba8();
     let (w, h) = img.dimensions();
     let texels: Vec<[u8; 4]> = img.into_raw().chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect();
     Image::new(w, h, color_space, texels).map_err(|e| fmt(e.to_string()))

@@ -9,10 +9,12 @@
 pub mod btf_file;
 pub mod btf_images;
 pub mod dem;
+pub mod fuzz;
 pub mod geotiff;
 pub mod gst;
 pub mod iges;
 pub mod image_io;
+pub mod limits;
 pub mod models;
 pub mod nurbs_json;
 pub mod obj;
@@ -20,7 +22,7 @@ pub mod obj_freeform;
 pub mod scene_file;
 
 pub use iges::{IgesModel, IgesSurface, load_iges, parse_iges};
-pub use image_io::{load_image, save_png, write_atomic};
+pub use image_io::{decode_image, load_image, save_png, write_atomic};
 pub use obj::load_obj;
 pub use scene_file::{FileLoader, load_scene};
 

@@ -14,7 +14,8 @@ use crate::texture::sampler::floor;
 use glam::{Vec3, Vec4};
 
 /// Polar angle θ ∈ [0, π] and azimuth φ ∈ [0, 2π) of direction `pc − p`
-/// in the frame (N, U, V). A zero direction or one along N yields φ = 0.
+/// in the frame (N, U, V). A zero direction or one along N yields φ = 0; a
+/// non-finite direction or N yields (0, 0), non-finite U or V yields φ = 0.
 pub fn angles(p: Vec3, n: Vec3, u: Vec3, v: Vec3, pc: Vec3) -> (f32, f32) {
     let c = pc - p;
     let len = c.length();
@@ -25,6 +26,10 @@ pub fn angles(p: Vec3, n: Vec3, u: Vec3, v: Vec3, pc: Vec3) -> (f32, f32) {
     // θ = acos(C′·N)
     let s = c1.dot(n).clamp(-1.0, 1.0);
     let theta = acos(s);
+    if theta.is_nan() {
+        // N is not finite: no frame to measure in
+        return (0.0, 0.0);
+    }
     // R = N × C′, φ = acos(U·R′) − π/2
     let r = n.cross(c1);
     let rl = r.length();
@@ -39,6 +44,10 @@ pub fn angles(p: Vec3, n: Vec3, u: Vec3, v: Vec3, pc: Vec3) -> (f32, f32) {
     }
     if c1.dot(u) < 0.0 {
         phi = std::f32::consts::PI - phi;
+    }
+    if phi.is_nan() {
+        // U or V is not finite
+        return (theta, 0.0);
     }
     (theta, phi - std::f32::consts::TAU * floor(phi / std::f32::consts::TAU))
 }
@@ -181,7 +190,8 @@ pub fn angles4(p: V3x4, n: V3x4, u: V3x4, v: V3x4, pc: Vec3) -> (Vec4, Vec4) {
     let q = phi / TAU;
     let fl = Vec4::new(floor(q.x), floor(q.y), floor(q.z), floor(q.w));
     phi -= Vec4::splat(TAU) * fl;
-    let phi = Vec4::select(has_r, phi, Vec4::ZERO);
+    let phi = Vec4::select(has_r & !phi.is_nan_mask(), phi, Vec4::ZERO);
+    let good = good & !theta.is_nan_mask();
     (Vec4::select(good, theta, Vec4::ZERO), Vec4::select(good, phi, Vec4::ZERO))
 }
 

@@ -2,6 +2,8 @@
 
 use super::GpuError;
 use std::fmt::Write;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 /// A wgpu instance honouring `WGPU_BACKEND` and the other wgpu environment variables.
 pub fn instance() -> wgpu::Instance {
@@ -41,6 +43,16 @@ pub struct GpuContext {
     pub queue: wgpu::Queue,
     /// Adapter description.
     pub info: wgpu::AdapterInfo,
+    /// Set by the device-lost callback: why the device was lost.
+    lost: Arc<Mutex<Option<String>>>,
+}
+
+/// How long one GPU wait may take before it counts as a hang, in seconds
+/// (`HITEX_GPU_TIMEOUT`, default 300: the slowest frame hitex renders on a
+/// software rasterizer takes a few seconds).
+pub fn gpu_timeout() -> Duration {
+    let secs = std::env::var("HITEX_GPU_TIMEOUT").ok().and_then(|v| v.trim().parse::<f64>().ok());
+    Duration::from_secs_f64(secs.filter(|s| s.is_finite() && *s > 0.0).unwrap_or(300.0).min(86_400.0))
 }
 
 impl GpuContext {
@@ -70,10 +82,60 @@ impl GpuContext {
         let (device, queue) = pollster::block_on(adapter.request_device(&desc))
             .map_err(|e| GpuError::Device(format!("{} ({:?}): {e}", info.name, info.backend)))?;
         // errors outside an error scope are reported, never a panic
-        device.on_uncaptured_error(std::sync::Arc::new(|e: wgpu::Error| {
-            eprintln!("hitex: GPU error: {e}");
+        let lost: Arc<Mutex<Option<String>>> = Arc::default();
+        // errors outside an error scope are reported, never a panic; after a loss they are only its echo
+        let quiet = lost.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            if quiet.lock().map(|l| l.is_none()).unwrap_or(true) {
+                eprintln!("hitex: GPU error: {e}");
+            }
         }));
-        Ok(Self { adapter, device, queue, info })
+        let record = lost.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            if let Ok(mut l) = record.lock() {
+                let why = match reason {
+                    wgpu::DeviceLostReason::Destroyed => "destroyed".to_string(),
+                    other => format!("{other:?}").to_lowercase(),
+                };
+                l.get_or_insert_with(|| match message.trim() {
+                    "" => why,
+                    m => format!("{why}: {m}"),
+                });
+            }
+        });
+        Ok(Self { adapter, device, queue, info, lost })
+    }
+
+    /// `Err` once the device is lost (driver reset, removal, or [`GpuContext::lose_device`]).
+    pub fn alive(&self) -> Result<(), GpuError> {
+        match self.lost.lock().ok().and_then(|l| l.clone()) {
+            Some(why) => Err(GpuError::Lost(why)),
+            None => Ok(()),
+        }
+    }
+
+    /// Destroys the device, as a driver reset would: every later render
+    /// returns [`GpuError::Lost`]. For testing the fallback paths.
+    pub fn lose_device(&self) {
+        self.device.destroy();
+        // the callback runs on the next poll; make the loss visible at once
+        let _ = self.device.poll(wgpu::PollType::Poll);
+        if let Ok(mut l) = self.lost.lock() {
+            l.get_or_insert_with(|| "destroyed".into());
+        }
+    }
+
+    /// Waits for the submitted work, at most [`gpu_timeout`]; a device lost
+    /// meanwhile or a hang becomes an error, never a wait without end.
+    pub fn wait(&self) -> Result<(), GpuError> {
+        let timeout = gpu_timeout();
+        let r = self.device.poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(timeout) });
+        self.alive()?;
+        match r {
+            Ok(_) => Ok(()),
+            Err(wgpu::PollError::Timeout) => Err(GpuError::Timeout(timeout.as_secs_f64())),
+            Err(e) => Err(GpuError::Readback(e.to_string())),
+        }
     }
 
     /// "llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)".

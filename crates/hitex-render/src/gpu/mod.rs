@@ -33,6 +33,12 @@ pub enum GpuError {
     /// The output could not be read back.
     #[error("GPU readback failed: {0}")]
     Readback(String),
+    /// The device was lost (driver reset, GPU removed, or destroyed).
+    #[error("the GPU device was lost ({0})")]
+    Lost(String),
+    /// The GPU did not finish within the time allowed.
+    #[error("the GPU did not finish within {0:.0} s (HITEX_GPU_TIMEOUT); it may hang")]
+    Timeout(f64),
 }
 
 /// A render pipeline of the one shape hitex draws with: `vs_main` and
@@ -421,6 +427,7 @@ impl GpuRenderer {
 
     fn check_output(&self, width: u32, height: u32) -> Result<(), RenderError> {
         check_size(width, height)?;
+        self.ctx.alive()?;
         let max = self.ctx.device.limits().max_texture_dimension_2d;
         if width > max || height > max {
             return Err(RenderError::Invalid(format!(
@@ -494,19 +501,20 @@ impl GpuRenderer {
             wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
         );
         self.ctx.queue.submit([enc.finish()]);
+        self.ctx.alive()?;
         if let Some(e) = pollster::block_on(oom.pop()) {
             return Err(GpuError::Render(e.to_string()).into());
         }
         if let Some(e) = pollster::block_on(validation.pop()) {
             return Err(GpuError::Render(e.to_string()).into());
         }
-        let rgba = read_back(device, &tg.readback, width, height, tg.padded_row)?;
+        let rgba = read_back(&self.ctx, &tg.readback, width, height, tg.padded_row)?;
         Ok(Frame { width, height, rgba })
     }
 }
 
 fn read_back(
-    device: &wgpu::Device,
+    ctx: &GpuContext,
     buf: &wgpu::Buffer,
     width: u32,
     height: u32,
@@ -517,11 +525,15 @@ fn read_back(
     slice.map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);
     });
-    device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Readback(e.to_string()))?;
-    match rx.recv() {
+    ctx.wait()?;
+    // the wait ran the callback; if it did not, the device is gone rather than slow
+    match rx.try_recv() {
         Ok(Ok(())) => {}
         Ok(Err(e)) => return Err(GpuError::Readback(e.to_string())),
-        Err(e) => return Err(GpuError::Readback(e.to_string())),
+        Err(_) => {
+            ctx.alive()?;
+            return Err(GpuError::Readback("the GPU finished but the image was never mapped".into()));
+        }
     }
     let mut out = Vec::with_capacity(width as usize * height as usize * 4);
     {

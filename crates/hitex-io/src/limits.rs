@@ -1,0 +1,154 @@
+//! The memory cap for anything sized from a file.
+//!
+//! Every reader checks what a file *claims* before it allocates: a declared
+//! image size, array shape, payload length or archive entry size must fit both
+//! the data the file actually holds (its length times the largest expansion
+//! its compression can give) and one process-wide cap, so that a 2 GB claim in
+//! a 1 KB header is refused at once instead of being allocated.
+//!
+//! The cap defaults to [`DEFAULT_MAX_BYTES`] and is set by the environment
+//! variable `HITEX_MAX_MEMORY` (bytes, or with a `K`, `M`, `G` or `T` suffix:
+//! `512M`, `2G`) or by [`set_max_bytes`] (the CLI's `--max-memory`).
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// The cap when nothing else is said: 8 GiB.
+pub const DEFAULT_MAX_BYTES: u64 = 8 << 30;
+
+/// Largest expansion of DEFLATE data (zlib's bound: 1032 output bytes per
+/// input byte), which bounds PNG, zip/npz entries and deflated TIFF strips.
+pub const DEFLATE_RATIO: u64 = 1032;
+
+/// A bound on the expansion of the other compressed formats hitex reads
+/// (baseline JPEG needs at least a few bits per 8×8 block; TIFF LZW and
+/// PackBits expand far less than this).
+pub const ANY_RATIO: u64 = 4096;
+
+/// 0 = not yet read from the environment.
+static CAP: AtomicU64 = AtomicU64::new(0);
+
+/// Parses `512M`, `2G`, `1048576`, `1.5G` (binary multiples).
+pub fn parse_bytes(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let (num, mult) = match t.char_indices().last() {
+        Some((i, c)) if c.is_ascii_alphabetic() => {
+            let m: u64 = match c.to_ascii_uppercase() {
+                'K' => 1 << 10,
+                'M' => 1 << 20,
+                'G' => 1 << 30,
+                'T' => 1 << 40,
+                'B' => 1,
+                _ => return Err(format!("'{s}' is not a size such as 512M or 2G (units K, M, G, T)")),
+            };
+            (&t[..i], m)
+        }
+        _ => (t, 1),
+    };
+    let v: f64 = num.trim().parse().map_err(|_| format!("'{s}' is not a size such as 512M or 2G"))?;
+    let bytes = v * mult as f64;
+    if !bytes.is_finite() || bytes < 1.0 || bytes > u64::MAX as f64 / 2.0 {
+        return Err(format!("'{s}' is not a usable size (at least 1 byte)"));
+    }
+    Ok(bytes as u64)
+}
+
+/// The cap in force, in bytes.
+pub fn max_bytes() -> u64 {
+    match CAP.load(Ordering::Relaxed) {
+        0 => {
+            let cap = std::env::var("HITEX_MAX_MEMORY")
+                .ok()
+                .and_then(|v| match parse_bytes(&v) {
+                    Ok(b) => Some(b),
+                    Err(e) => {
+                        eprintln!("hitex: HITEX_MAX_MEMORY ignored: {e}");
+                        None
+                    }
+                })
+                .unwrap_or(DEFAULT_MAX_BYTES);
+            // another thread may have set it meanwhile; the first value stays
+            let _ = CAP.compare_exchange(0, cap, Ordering::Relaxed, Ordering::Relaxed);
+            CAP.load(Ordering::Relaxed)
+        }
+        c => c,
+    }
+}
+
+/// Sets the cap (e.g. from `--max-memory`); it wins over the environment.
+pub fn set_max_bytes(bytes: u64) {
+    CAP.store(bytes.max(1), Ordering::Relaxed);
+}
+
+fn human(b: u64) -> String {
+    match b {
+        b if b >= 1 << 30 => format!("{:.1} GiB", b as f64 / (1u64 << 30) as f64),
+        b if b >= 1 << 20 => format!("{:.1} MiB", b as f64 / (1u64 << 20) as f64),
+        b if b >= 1 << 10 => format!("{:.1} KiB", b as f64 / 1024.0),
+        b => format!("{b} bytes"),
+    }
+}
+
+/// Checks that `claimed` bytes for `what` fit the cap. `None` means the claim
+/// overflowed 64 bits.
+pub fn check_cap(what: &str, claimed: Option<u64>) -> Result<u64, String> {
+    let cap = max_bytes();
+    match claimed {
+        Some(c) if c <= cap => Ok(c),
+        Some(c) => Err(format!(
+            "{what} needs {} ({c} bytes), beyond the memory cap of {} (raise it with --max-memory or HITEX_MAX_MEMORY)",
+            human(c),
+            human(cap)
+        )),
+        None => Err(format!("{what} claims more than 2^64 bytes")),
+    }
+}
+
+/// Checks a claim against the data that backs it: `claimed` bytes decoded
+/// from `available` bytes of input that expands at most `ratio` times, and
+/// against the cap.
+pub fn check_claim(what: &str, claimed: Option<u64>, available: u64, ratio: u64) -> Result<u64, String> {
+    let c = check_cap(what, claimed)?;
+    // a small constant allows for headers and tables that expand more
+    let bound = available.saturating_mul(ratio).saturating_add(1 << 16);
+    if c > bound {
+        return Err(format!(
+            "{what} claims {} but the file holds only {available} bytes of data for it (at most {} once decoded)",
+            human(c),
+            human(bound)
+        ));
+    }
+    Ok(c)
+}
+
+/// `a * b * c` in u64, `None` on overflow.
+pub fn product(factors: &[u64]) -> Option<u64> {
+    factors.iter().try_fold(1u64, |acc, &f| acc.checked_mul(f))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_parse() {
+        assert_eq!(parse_bytes("512M"), Ok(512 << 20));
+        assert_eq!(parse_bytes("2g"), Ok(2 << 30));
+        assert_eq!(parse_bytes("1.5K"), Ok(1536));
+        assert_eq!(parse_bytes(" 4096 "), Ok(4096));
+        for bad in ["", "G", "-1M", "0", "1X", "nanG", "inf"] {
+            assert!(parse_bytes(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn claims_are_checked_against_the_data_and_the_cap() {
+        // a 2 GB claim backed by 1 KB of deflated data
+        let e = check_claim("image", Some(2 << 30), 1024, DEFLATE_RATIO).unwrap_err();
+        assert!(e.contains("holds only 1024 bytes"), "{e}");
+        // honest claims pass
+        assert_eq!(check_claim("image", Some(4 << 20), 1 << 20, DEFLATE_RATIO), Ok(4 << 20));
+        assert!(check_cap("x", None).unwrap_err().contains("2^64"));
+        assert_eq!(product(&[1 << 32, 1 << 31, 4]), None);
+        assert_eq!(product(&[3, 5, 7]), Some(105));
+    }
+}
