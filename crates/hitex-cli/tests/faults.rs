@@ -10,82 +10,10 @@
 
 mod common;
 
-use common::{error_lines, hitex, tmp};
-use std::path::{Path, PathBuf};
+use common::{Tmpfs, error_lines, hitex, tmp, walk};
+use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
-
-/// A small tmpfs mounted for one test, unmounted when dropped.
-struct Tmpfs {
-    dir: PathBuf,
-}
-
-impl Tmpfs {
-    fn mount(name: &str, kib: u32) -> Option<Tmpfs> {
-        let dir = tmp(name).join("mnt");
-        std::fs::create_dir_all(&dir).ok()?;
-        let opt = format!("size={kib}k");
-        let ok = Command::new("mount")
-            .args(["-t", "tmpfs", "-o", &opt, "hitex-test", dir.to_str()?])
-            .stderr(Stdio::null())
-            .status()
-            .is_ok_and(|s| s.success());
-        if !ok {
-            let msg = format!("SKIPPED {name}: cannot mount a tmpfs (needs root)");
-            if std::env::var("HITEX_REQUIRE_FAULTS").is_ok_and(|v| v == "1") {
-                panic!("{msg}, and HITEX_REQUIRE_FAULTS=1");
-            }
-            eprintln!("{msg}");
-            return None;
-        }
-        Some(Tmpfs { dir })
-    }
-
-    /// Fills the file system to the last byte.
-    fn fill(&self) {
-        use std::io::Write;
-        let Ok(mut f) = std::fs::File::create(self.dir.join("filler")) else { return };
-        let block = vec![0xa5u8; 4096];
-        while f.write_all(&block).is_ok() {}
-        let _ = f.write_all(&block[..1]);
-        while f.write_all(&block[..1]).is_ok() {}
-    }
-
-    fn read_only(&self) {
-        let ok = Command::new("mount")
-            .args(["-o", "remount,ro", self.dir.to_str().unwrap_or_default()])
-            .status()
-            .is_ok_and(|s| s.success());
-        assert!(ok, "remount read-only failed");
-    }
-
-    /// Files other than `keep`, by name (temporary files would show up here).
-    fn leftovers(&self, keep: &[&str]) -> Vec<String> {
-        let mut v = Vec::new();
-        walk(&self.dir, &mut v);
-        v.retain(|n| !keep.iter().any(|k| n.ends_with(k)));
-        v
-    }
-}
-
-impl Drop for Tmpfs {
-    fn drop(&mut self) {
-        let _ = Command::new("umount").arg("-l").arg(&self.dir).status();
-    }
-}
-
-fn walk(dir: &Path, out: &mut Vec<String>) {
-    if let Ok(rd) = std::fs::read_dir(dir) {
-        for e in rd.flatten() {
-            let p = e.path();
-            if p.is_dir() {
-                walk(&p, out);
-            } else {
-                out.push(p.to_string_lossy().into_owned());
-            }
-        }
-    }
-}
 
 fn scene(dir: &Path) -> String {
     let o = hitex(&["demo", "--print-scene"]);
