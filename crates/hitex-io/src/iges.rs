@@ -390,6 +390,9 @@ fn sample_curve(k: usize, parsed: &Parsed, out: &mut Vec<[f64; 2]>, depth: usize
         126 => {
             let kk = val(1, "K")? as usize;
             let m = val(2, "M")? as usize;
+            if kk >= fields.len() {
+                return Err(format!("entity 126 declares {kk} + 1 control points in {} fields", fields.len()));
+            }
             if m == 0 || m > hitex_core::nurbs::MAX_DEGREE || kk < m {
                 return Err(format!("entity 126: degree {m} with K = {kk}"));
             }
@@ -491,6 +494,9 @@ fn parse_128(f: &[&str]) -> Result<(NurbsSurface, Range), String> {
         if v.fract() != 0.0 {
             return Err(format!("{what} {v} is not an integer"));
         }
+        if v.abs() > 1e15 {
+            return Err(format!("{what} {v:e} is out of range"));
+        }
         Ok(v as i64)
     };
     let (k1, k2, m1, m2) = (int(0, "K1")?, int(1, "K2")?, int(2, "M1")?, int(3, "M2")?);
@@ -501,6 +507,9 @@ fn parse_128(f: &[&str]) -> Result<(NurbsSurface, Range), String> {
     }
     if k1 < m1 || k2 < m2 {
         return Err(format!("K1 = {k1}, K2 = {k2} give fewer control points than degree + 1 ({m1}, {m2})"));
+    }
+    if k1 >= f.len() as i64 || k2 >= f.len() as i64 {
+        return Err(format!("K1 = {k1}, K2 = {k2} declare more control points than the record's {} fields", f.len()));
     }
     // declared sizes against the record before allocating
     let (nu, nv) = ((k1 + 1) as u64, (k2 + 1) as u64);
@@ -685,7 +694,8 @@ mod tests {
                 "128,1,1,1,1,0,0,1,0,0,0.,0.,1.,1.,0.,0.,1.,1.,1.,1.,1.,1.,0.,zz,0.,1.,0.,0.,0.,1.,0.,1.,1.,1.,0.,1.,0.,1.;",
                 "'zz'",
             ),
-            ("128,999999,999999,3,3,0,0,1,0,0,0.;", "needs"),
+            ("128,999999,999999,3,3,0,0,1,0,0,0.;", "declare more control points"),
+            ("128,1e300,1,3,3,0,0,1,0,0,0.;", "K1 1e300 is out of range"),
             ("126,1,1;", "directory says entity 128"),
         ];
         for (rec, needle) in cases {
