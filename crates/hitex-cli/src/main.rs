@@ -8,6 +8,7 @@ mod demo;
 mod nurbs_cmd;
 mod terrain_cmd;
 mod terrain_store_cmd;
+mod view;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use hitex_core::scene::RenderMode;
@@ -77,6 +78,8 @@ enum Command {
         #[command(subcommand)]
         which: btf_cmd::BtfCommand,
     },
+    /// Open a window on a scene, NURBS model, BTF, tile store or ground image.
+    View(view::ViewArgs),
     /// List GPU adapters, their features and limits.
     Info,
     /// Benchmarks: CPU and GPU renderers on the same frames.
@@ -339,6 +342,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Nurbs { which } => nurbs_cmd::run(which),
         Command::Terrain { which } => terrain_cmd::run(which),
         Command::Btf { which } => btf_cmd::run(which),
+        Command::View(args) => view::run(args),
         Command::Info => {
             println!("hitex {}", env!("CARGO_PKG_VERSION"));
             println!("cpu backend: {} threads", rayon_threads());

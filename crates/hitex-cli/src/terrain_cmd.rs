@@ -9,7 +9,7 @@ use hitex_core::texture::{ColorSpace, Filter, Image, MipPyramid, SamplerOptions,
 use hitex_io::dem::load_elevation;
 use hitex_io::geotiff::{GeoRaster, fill_holes, load_geotiff};
 use hitex_render::PreparedScene;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -312,12 +312,24 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
 
 /// The flight texture and its wrap mode (imagery mirrors, patterns repeat).
 fn spans_texture(a: &SpansArgs) -> Result<(MipPyramid, Wrap, String), CliError> {
-    match &a.image {
+    ground_texture(a.image.as_deref(), &a.bands, &a.pattern, a.texture_size)
+}
+
+/// A ground texture: a PNG/JPEG, a GeoTIFF's `bands` stretched to RGB, or
+/// the procedural `pattern` of `texture_size`² texels; with its wrap mode and
+/// a description.
+pub(crate) fn ground_texture(
+    image: Option<&Path>,
+    bands: &str,
+    pattern: &str,
+    texture_size: u32,
+) -> Result<(MipPyramid, Wrap, String), CliError> {
+    match image {
         Some(path) => {
             let ext = path.extension().and_then(|e| e.to_str()).unwrap_or_default().to_ascii_lowercase();
             let img = if ext == "tif" || ext == "tiff" {
                 let raster = load_geotiff(path)?;
-                let bands = parse_bands(&a.bands, &raster, path)?;
+                let bands = parse_bands(bands, &raster, path)?;
                 stretched(&raster, bands)?
             } else {
                 hitex_io::load_image(path, ColorSpace::Srgb)?
@@ -326,15 +338,15 @@ fn spans_texture(a: &SpansArgs) -> Result<(MipPyramid, Wrap, String), CliError> 
             Ok((MipPyramid::build(img), Wrap::Mirror, name))
         }
         None => {
-            let p = Pattern::from_name(&a.pattern).ok_or_else(|| {
+            let p = Pattern::from_name(pattern).ok_or_else(|| {
                 let names: Vec<&str> = Pattern::ALL.iter().map(|p| p.name()).collect();
-                CliError::Input(format!("--pattern '{}' is not one of {}", a.pattern, names.join(", ")))
+                CliError::Input(format!("--pattern '{pattern}' is not one of {}", names.join(", ")))
             })?;
-            if !(4..=8192).contains(&a.texture_size) {
+            if !(4..=8192).contains(&texture_size) {
                 return Err(CliError::Input("--texture-size must be in 4..=8192".into()));
             }
-            let img = p.render(a.texture_size).map_err(|e| CliError::Input(e.to_string()))?;
-            Ok((MipPyramid::build(img), Wrap::Repeat, format!("procedural {} {}²", p.name(), a.texture_size)))
+            let img = p.render(texture_size).map_err(|e| CliError::Input(e.to_string()))?;
+            Ok((MipPyramid::build(img), Wrap::Repeat, format!("procedural {} {texture_size}²", p.name())))
         }
     }
 }

@@ -1,0 +1,751 @@
+//! `hitex view`: a window on a scene, a NURBS model, a BTF, a tile store or a
+//! ground image, for interactive inspection.
+//!
+//! The view is rendered by the same renderers as the headless commands (GPU
+//! or CPU backend, or the CPU bank model for the span-parallel terrain
+//! modes) and shown through eframe (winit + egui on wgpu); the image the
+//! window shows is the frame the renderer produced, so a screenshot of a view
+//! equals the headless render of the same camera.
+
+use crate::{AnyRenderer, Backend, CliError, parse_size, save};
+use clap::{Args, ValueEnum};
+use eframe::egui;
+use glam::{DVec2, Vec3};
+use hitex_core::btf::{Btf, Layout};
+use hitex_core::residency::ResidentMaps;
+use hitex_core::scene::{Camera, RenderMode, Scene};
+use hitex_core::texture::MipPyramid;
+use hitex_core::texture::bc1::Bc1Encoder;
+use hitex_core::texture::sampler::Wrap;
+use hitex_core::texture::span::{
+    BankModel, FlightView, RgbaFrame, SpanFilter, SpanOptions, SpanScheme, render_spans, render_trilinear,
+};
+use hitex_io::gst::StoreMeta;
+use hitex_render::btf::{BtfSurface, PreparedBtf};
+use hitex_render::nurbs::{NurbsMode, PreparedNurbs};
+use hitex_render::{Frame, PreparedScene};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Arguments of `hitex view`.
+#[derive(Args)]
+pub struct ViewArgs {
+    /// What to open: SCENE.toml; a NURBS model (teapot, surface, spray, FILE.igs,
+    /// FILE.obj, FILE.json); a BTF (FILE.hbtf or a material name: corduroy, knit,
+    /// leather, woven, brushed-metal); a GST tile store (folder); a ground image
+    /// (.png, .jpg, .tif) for the span-parallel terrain modes.
+    pub input: String,
+    /// Render size of the view (default: the window's view area).
+    #[arg(long, value_parser = parse_size)]
+    pub size: Option<(u32, u32)>,
+    /// Window size in pixels.
+    #[arg(long, value_parser = parse_size, default_value = "1280x800")]
+    pub window: (u32, u32),
+    /// Which renderer draws the view.
+    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    pub backend: Backend,
+    /// Display mode to start in (e.g. isophote, zebra, gauss; level, uv; span3, bicubic).
+    #[arg(long)]
+    pub mode: Option<String>,
+    /// Write the view after --frames frames to this PNG and close (scripted use).
+    #[arg(long)]
+    pub screenshot: Option<PathBuf>,
+    /// Write the whole window (panels included) after --frames frames to this PNG and close.
+    #[arg(long)]
+    pub window_screenshot: Option<PathBuf>,
+    /// Frames to show before the screenshot.
+    #[arg(long, default_value_t = 3)]
+    pub frames: u32,
+}
+
+/// Terrain display modes of a ground image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum GroundMode {
+    /// Per-pixel trilinear (eq. (1)–(4)).
+    Trilinear,
+    /// 2×2 spans from 3×3 interleaved banks.
+    Span3,
+    /// 2×2 spans from 4×4 banks.
+    Span4,
+    /// Bicubic from the 4×4-bank neighbourhood.
+    Bicubic,
+}
+
+/// An orbiting camera: the content's own camera until the user moves it.
+struct Orbit {
+    base: Camera,
+    target: Vec3,
+    frame: [Vec3; 3],
+    yaw: f32,
+    pitch: f32,
+    distance: f32,
+    moved: bool,
+}
+
+impl Orbit {
+    fn new(base: Camera) -> Self {
+        let up = base.up.normalize_or(Vec3::Y);
+        let off = base.position - base.target;
+        let distance = off.length().max(1e-6);
+        let flat = off - up * off.dot(up);
+        let e0 = if flat.length() > 1e-6 * distance { flat.normalize() } else { up.any_orthonormal_vector() };
+        let e1 = up.cross(e0);
+        let pitch = (off.dot(up) / distance).clamp(-1.0, 1.0).asin();
+        Self { base, target: base.target, frame: [e0, e1, up], yaw: 0.0, pitch, distance, moved: false }
+    }
+
+    fn camera(&self) -> Camera {
+        if !self.moved {
+            return self.base;
+        }
+        let [e0, e1, up] = self.frame;
+        let (sy, cy) = self.yaw.sin_cos();
+        let (sp, cp) = self.pitch.sin_cos();
+        let dir = (e0 * cy + e1 * sy) * cp + up * sp;
+        let mut c = self.base;
+        c.position = self.target + dir * self.distance;
+        c.target = self.target;
+        c.near = (self.base.near * self.distance / (self.base.position - self.base.target).length().max(1e-6))
+            .clamp(1e-5, c.far * 0.5);
+        if c.validate().is_ok() { c } else { self.base }
+    }
+
+    fn rotate(&mut self, dx: f32, dy: f32) {
+        self.yaw -= dx * 0.01;
+        self.pitch = (self.pitch + dy * 0.01).clamp(-1.55, 1.55);
+        self.moved = true;
+    }
+
+    fn pan(&mut self, dx: f32, dy: f32, height: f32) {
+        let c = self.camera();
+        let f = (c.target - c.position).normalize_or(Vec3::Z);
+        let right = f.cross(self.frame[2]).normalize_or(Vec3::X);
+        let up = right.cross(f);
+        let scale = 2.0 * self.distance * (c.fov_y_deg.to_radians() / 2.0).tan() / height.max(1.0);
+        self.target += (-right * dx + up * dy) * scale;
+        self.moved = true;
+    }
+
+    fn zoom(&mut self, steps: f32) {
+        self.distance = (self.distance * (-steps * 0.1).exp()).clamp(1e-4, 1e7);
+        self.moved = true;
+    }
+}
+
+/// Where the terrain camera is: position as fractions of the extent,
+/// altitude in ground units, pitch from the nadir, heading from north.
+#[derive(Debug, Clone, Copy)]
+struct Flight {
+    x: f64,
+    y: f64,
+    altitude: f64,
+    pitch: f64,
+    heading: f64,
+}
+
+impl Flight {
+    /// Keys: W/S forward/back, A/D sideways, Q/E down/up, arrows turn and tilt.
+    fn steer(&mut self, i: &egui::InputState, extent: DVec2) -> bool {
+        let dt = i.stable_dt.clamp(0.0, 0.1) as f64;
+        let key = |k| if i.key_down(k) { 1.0 } else { 0.0 };
+        let fwd = key(egui::Key::W) - key(egui::Key::S);
+        let side = key(egui::Key::D) - key(egui::Key::A);
+        let climb = key(egui::Key::E) - key(egui::Key::Q);
+        let turn = key(egui::Key::ArrowRight) - key(egui::Key::ArrowLeft);
+        let tilt = key(egui::Key::ArrowUp) - key(egui::Key::ArrowDown);
+        if fwd == 0.0 && side == 0.0 && climb == 0.0 && turn == 0.0 && tilt == 0.0 {
+            return false;
+        }
+        let h = self.heading.to_radians();
+        let speed = self.altitude * dt;
+        self.x += (h.sin() * fwd + h.cos() * side) * speed / extent.x.max(1.0);
+        self.y += (-h.cos() * fwd + h.sin() * side) * speed / extent.y.max(1.0);
+        self.altitude = (self.altitude * (climb * dt).exp()).clamp(1e-3, 1e9);
+        self.heading = (self.heading + turn * 60.0 * dt).rem_euclid(360.0);
+        self.pitch = (self.pitch + tilt * 30.0 * dt).clamp(0.0, 85.0);
+        true
+    }
+}
+
+enum Content {
+    Scene { scene: Box<Scene>, prepared: Box<PreparedScene>, orbit: Orbit },
+    Nurbs { prepared: Box<PreparedNurbs>, orbit: Orbit, light: [f32; 2], light_moved: bool },
+    Btf(Box<BtfView>),
+    Store { meta: StoreMeta, cache: Box<ResidentMaps>, flight: Flight, fov: f64, per_side: u32, stats: String },
+    Ground { pyr: Box<MipPyramid>, wrap: Wrap, flight: Flight, mode: GroundMode, banks: String },
+}
+
+struct BtfView {
+    btf: Btf,
+    map: hitex_core::btf::index::IndexMap,
+    surface: BtfSurface,
+    quad: bool,
+    layout: Layout,
+    bc1: bool,
+    prepared: PreparedBtf,
+    orbit: Orbit,
+    light: [f32; 2],
+}
+
+const NURBS_MODES: [(NurbsMode, &str); 8] = [
+    (NurbsMode::Shaded, "shaded"),
+    (NurbsMode::Isophote, "isophote"),
+    (NurbsMode::Zebra, "zebra"),
+    (NurbsMode::Highlight, "highlight"),
+    (NurbsMode::Gauss, "gauss"),
+    (NurbsMode::Mean, "mean"),
+    (NurbsMode::VertexNormals, "vertex-normals"),
+    (NurbsMode::Normal, "normal"),
+];
+const SCENE_MODES: [(RenderMode, &str); 4] = [
+    (RenderMode::Shaded, "shaded"),
+    (RenderMode::Uv, "uv"),
+    (RenderMode::Level, "level"),
+    (RenderMode::Normal, "normal"),
+];
+const GROUND_MODES: [(GroundMode, &str); 4] = [
+    (GroundMode::Trilinear, "trilinear"),
+    (GroundMode::Span3, "span3"),
+    (GroundMode::Span4, "span4"),
+    (GroundMode::Bicubic, "bicubic"),
+];
+const LAYOUTS: [Layout; 8] = [Layout::A, Layout::B, Layout::C, Layout::C2, Layout::D, Layout::E, Layout::E2, Layout::F];
+
+fn pick<T: Copy>(list: &[(T, &str)], name: &str) -> Result<T, CliError> {
+    list.iter().find(|(_, n)| *n == name).map(|(m, _)| *m).ok_or_else(|| {
+        let names: Vec<&str> = list.iter().map(|(_, n)| *n).collect();
+        CliError::Input(format!("--mode {name}: this view has the modes {}", names.join(", ")))
+    })
+}
+
+fn light_dir(az: f32, el: f32) -> Vec3 {
+    let (a, e) = (az.to_radians(), el.to_radians());
+    Vec3::new(a.cos() * e.cos(), e.sin(), a.sin() * e.cos())
+}
+
+/// Opens `input` as the content it is.
+fn open(input: &str, mode: Option<&str>, aspect: f32) -> Result<Content, CliError> {
+    let path = Path::new(input);
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
+    if path.is_dir() {
+        let meta = hitex_io::gst::open_store(path)?;
+        let cache = crate::terrain_store_cmd::open_cache(path, &meta, 400)?;
+        let fov = 45.0;
+        let extent = DVec2::new(meta.width as f64, meta.height as f64);
+        let flight =
+            Flight { x: 0.5, y: 0.8, altitude: extent.max_element() * meta.pixel[0] / 10.0, pitch: 60.0, heading: 0.0 };
+        if let Some(m) = mode
+            && m != "trilinear"
+        {
+            return Err(CliError::Input(format!(
+                "--mode {m}: a store is flown per-pixel trilinear; open the imagery itself for span3, span4, bicubic"
+            )));
+        }
+        return Ok(Content::Store { meta, cache: Box::new(cache), flight, fov, per_side: 6, stats: String::new() });
+    }
+    match ext.as_str() {
+        "toml" => {
+            let mut scene = hitex_io::load_scene(path)?;
+            if let Some(m) = mode {
+                scene.mode = pick(&SCENE_MODES, m)?;
+            }
+            let prepared = PreparedScene::new(&scene);
+            let orbit = Orbit::new(prepared.camera);
+            Ok(Content::Scene { scene: Box::new(scene), prepared: Box::new(prepared), orbit })
+        }
+        "png" | "jpg" | "jpeg" | "tif" | "tiff" => {
+            let (pyr, wrap, _) = crate::terrain_cmd::ground_texture(Some(path), "3,2,1", "bricks", 1024)?;
+            let side = pyr.width().max(pyr.height()) as f64;
+            let flight = Flight { x: 0.5, y: 0.5, altitude: 0.3 * side, pitch: 60.0, heading: 30.0 };
+            let mode = mode.map_or(Ok(GroundMode::Trilinear), |m| pick(&GROUND_MODES, m))?;
+            Ok(Content::Ground { pyr: Box::new(pyr), wrap, flight, mode, banks: String::new() })
+        }
+        "hbtf" => open_btf(input, mode, aspect),
+        _ if hitex_core::btf::synth::Material::parse(input).is_some() => open_btf(input, mode, aspect),
+        _ => {
+            let model = hitex_io::models::load_model(input)?;
+            let mut prepared = crate::nurbs_cmd::prepare(&model, 8);
+            if let Some(m) = mode {
+                prepared.mode = pick(&NURBS_MODES, m)?;
+            }
+            let orbit = Orbit::new(prepared.camera);
+            Ok(Content::Nurbs { prepared: Box::new(prepared), orbit, light: [45.0, 40.0], light_moved: false })
+        }
+    }
+}
+
+fn open_btf(input: &str, mode: Option<&str>, aspect: f32) -> Result<Content, CliError> {
+    let layout = match mode {
+        None => Layout::F,
+        Some(m) => Layout::parse(m).ok_or_else(|| {
+            CliError::Input(format!("--mode {m}: a BTF view takes a layout: a, b, c, c2, d, e, e2 or f"))
+        })?,
+    };
+    let btf = crate::btf_cmd::load_or_synth(input, true)?;
+    let map = crate::btf_cmd::index_with_progress(&btf, 128, 1, 3, true)?;
+    let surface = crate::btf_cmd::surface_for("sphere", 4.0)?;
+    let camera = crate::btf_cmd::camera_for(&surface, false, aspect)?;
+    let prepared = PreparedBtf::new(&btf, layout, None, map.clone(), surface.clone())?;
+    Ok(Content::Btf(Box::new(BtfView {
+        btf,
+        map,
+        surface,
+        quad: false,
+        layout,
+        bc1: false,
+        prepared,
+        orbit: Orbit::new(camera),
+        light: [30.0, 45.0],
+    })))
+}
+
+fn from_span(f: RgbaFrame) -> Frame {
+    Frame { width: f.width, height: f.height, rgba: f.rgba }
+}
+
+impl Content {
+    fn kind(&self) -> &'static str {
+        match self {
+            Content::Scene { .. } => "scene",
+            Content::Nurbs { .. } => "NURBS model",
+            Content::Btf(_) => "BTF",
+            Content::Store { .. } => "tile store",
+            Content::Ground { .. } => "ground image",
+        }
+    }
+
+    /// Renders the current view at `w`×`h`.
+    fn render(&mut self, r: &mut AnyRenderer, w: u32, h: u32) -> Result<Frame, CliError> {
+        match self {
+            Content::Scene { prepared, orbit, .. } => Ok(r.render(prepared, &orbit.camera(), w, h)?),
+            Content::Nurbs { prepared, orbit, light, light_moved } => {
+                // the model's own light (as the headless render has it) until the sliders move
+                if *light_moved {
+                    prepared.light = Some(light_dir(light[0], light[1]));
+                }
+                let mut f = r.render_nurbs(prepared, &orbit.camera(), w, h)?;
+                if matches!(prepared.mode, NurbsMode::Gauss | NurbsMode::Mean) {
+                    let slot = if prepared.mode == NurbsMode::Gauss { 0 } else { 1 };
+                    hitex_render::legend::diverging_legend(&mut f, prepared.curvature_range[slot]);
+                }
+                Ok(f)
+            }
+            Content::Btf(b) => {
+                let light = crate::btf_cmd::light_for(&b.surface, b.quad, b.light[0], b.light[1]);
+                Ok(r.render_btf(&b.prepared, &b.orbit.camera(), light, w, h)?)
+            }
+            Content::Store { meta, cache, flight, fov, per_side, stats } => {
+                let extent = DVec2::new(meta.width as f64, meta.height as f64);
+                let key = crate::terrain_store_cmd::PathKey {
+                    t: 0.0,
+                    x: flight.x,
+                    y: flight.y,
+                    altitude: flight.altitude,
+                    pitch: flight.pitch,
+                    heading: flight.heading,
+                };
+                let cam = crate::terrain_store_cmd::camera_at(&key, meta, extent, *fov);
+                *per_side = hitex_core::terrain::active_area(*fov, w, hitex_io::gst::TILE, meta.levels.max(1))
+                    .ok()
+                    .and_then(|l| l.first().map(|l| l.per_side))
+                    .unwrap_or(6);
+                let mut start = Instant::now();
+                let (s, u, pages) = crate::terrain_store_cmd::frame_setup(
+                    cache,
+                    meta,
+                    &cam,
+                    (w, h),
+                    *fov,
+                    *per_side,
+                    false,
+                    &mut start,
+                );
+                *stats = format!(
+                    "maps: {} needed, {} resident ({:.1} MiB), {} requested, {} missing, {} failed",
+                    s.needed,
+                    s.resident,
+                    s.bytes as f64 / (1u64 << 20) as f64,
+                    s.requested,
+                    s.missing,
+                    s.failed
+                );
+                Ok(r.render_fly(&u, &pages)?)
+            }
+            Content::Ground { pyr, wrap, flight, mode, banks } => {
+                let view = FlightView {
+                    position: [flight.x * pyr.width() as f64, flight.y * pyr.height() as f64],
+                    altitude: flight.altitude,
+                    pitch_deg: 90.0 - flight.pitch,
+                    heading_deg: flight.heading,
+                    fov_deg: 45.0,
+                    width: w,
+                    height: h,
+                };
+                let (scheme, filter) = match mode {
+                    GroundMode::Trilinear => {
+                        banks.clear();
+                        return Ok(from_span(render_trilinear(pyr, &view, *wrap)));
+                    }
+                    GroundMode::Span3 => (SpanScheme::Banks3x3, SpanFilter::Bilinear),
+                    GroundMode::Span4 => (SpanScheme::Banks4x4, SpanFilter::Bilinear),
+                    GroundMode::Bicubic => (SpanScheme::Banks4x4, SpanFilter::Bicubic),
+                };
+                let opts = SpanOptions { scheme, filter, wrap: *wrap, level_shift: 0 };
+                let mut model = BankModel::new(scheme);
+                let f = render_spans(pyr, &view, &opts, &mut model);
+                *banks = format!(
+                    "{} spans, {} bank accesses, {} conflicts, mean λ {:.2}",
+                    model.spans,
+                    model.accesses,
+                    model.conflicts,
+                    model.mean_level()
+                );
+                Ok(from_span(f))
+            }
+        }
+    }
+
+    /// Mouse and keys on the view; true when the view changed.
+    fn interact(&mut self, resp: &egui::Response, i: &egui::InputState, height: f32) -> bool {
+        let orbit = match self {
+            Content::Scene { orbit, .. } | Content::Nurbs { orbit, .. } => Some(orbit),
+            Content::Btf(b) => Some(&mut b.orbit),
+            _ => None,
+        };
+        let d = resp.drag_delta();
+        let scroll = if resp.hovered() { i.smooth_scroll_delta.y } else { 0.0 };
+        if let Some(o) = orbit {
+            let mut changed = false;
+            if resp.dragged_by(egui::PointerButton::Primary) && d != egui::Vec2::ZERO {
+                o.rotate(d.x, d.y);
+                changed = true;
+            }
+            if (resp.dragged_by(egui::PointerButton::Secondary) || resp.dragged_by(egui::PointerButton::Middle))
+                && d != egui::Vec2::ZERO
+            {
+                o.pan(d.x, d.y, height);
+                changed = true;
+            }
+            if scroll != 0.0 {
+                o.zoom(scroll / 50.0);
+                changed = true;
+            }
+            return changed;
+        }
+        let (flight, extent) = match self {
+            Content::Store { flight, meta, .. } => (flight, DVec2::new(meta.width as f64, meta.height as f64)),
+            Content::Ground { flight, pyr, .. } => (flight, DVec2::new(pyr.width() as f64, pyr.height() as f64)),
+            _ => return false,
+        };
+        let mut changed = flight.steer(i, extent);
+        if resp.dragged_by(egui::PointerButton::Primary) && d != egui::Vec2::ZERO {
+            flight.heading = (flight.heading + d.x as f64 * 0.2).rem_euclid(360.0);
+            flight.pitch = (flight.pitch - d.y as f64 * 0.2).clamp(0.0, 85.0);
+            changed = true;
+        }
+        if scroll != 0.0 {
+            flight.altitude = (flight.altitude * (-scroll as f64 / 500.0).exp()).clamp(1e-3, 1e9);
+            changed = true;
+        }
+        changed
+    }
+
+    /// The side panel's controls; true when the view must be redrawn.
+    fn controls(&mut self, ui: &mut egui::Ui) -> Result<bool, CliError> {
+        let mut changed = false;
+        match self {
+            Content::Scene { scene, prepared, .. } => {
+                let before = scene.mode;
+                mode_box(ui, &SCENE_MODES, &mut scene.mode);
+                if scene.mode != before {
+                    let camera = prepared.camera;
+                    **prepared = PreparedScene::new(scene);
+                    prepared.camera = camera;
+                    changed = true;
+                }
+                ui.label(format!("{} triangles", prepared.triangle_count()));
+                if let Some(n) = &prepared.nurbs {
+                    ui.label(format!("{} NURBS patches", n.patch_count()));
+                }
+            }
+            Content::Nurbs { prepared, light, light_moved, .. } => {
+                let before = prepared.mode;
+                mode_box(ui, &NURBS_MODES, &mut prepared.mode);
+                changed |= prepared.mode != before;
+                changed |= ui.checkbox(&mut prepared.boundaries, "patch boundaries").changed();
+                changed |= ui.add(egui::Slider::new(&mut prepared.bands, 2..=60).text("isophote bands")).changed();
+                changed |= ui.add(egui::Slider::new(&mut prepared.stripes, 2..=60).text("zebra stripes")).changed();
+                if light_sliders(ui, light) {
+                    *light_moved = true;
+                    changed = true;
+                }
+                ui.label(format!("{} patches, exact point and normal per pixel", prepared.surfaces.len()));
+            }
+            Content::Btf(b) => {
+                let (layout, bc1) = (b.layout, b.bc1);
+                egui::ComboBox::from_label("layout").selected_text(b.layout.label()).show_ui(ui, |ui| {
+                    for l in LAYOUTS {
+                        ui.selectable_value(&mut b.layout, l, l.label());
+                    }
+                });
+                ui.checkbox(&mut b.bc1, "BC1 (DXT1)");
+                if (layout, bc1) != (b.layout, b.bc1) {
+                    let enc = b.bc1.then_some(Bc1Encoder::Ispc);
+                    b.prepared = PreparedBtf::new(&b.btf, b.layout, enc, b.map.clone(), b.surface.clone())?;
+                    changed = true;
+                }
+                changed |= light_sliders(ui, &mut b.light);
+                ui.label(format!("{} codebook reads + 4 index reads per pixel", b.layout.codebook_reads()));
+                ui.label(format!(
+                    "{} images of {}x{} texels",
+                    b.btf.grid().directions().pow(2),
+                    b.btf.width(),
+                    b.btf.height()
+                ));
+            }
+            Content::Store { stats, flight, .. } => {
+                ui.label("per-pixel trilinear through the resident maps");
+                ui.label(stats.as_str());
+                flight_label(ui, flight);
+            }
+            Content::Ground { mode, banks, flight, .. } => {
+                let before = *mode;
+                mode_box(ui, &GROUND_MODES, mode);
+                changed |= *mode != before;
+                if !banks.is_empty() {
+                    ui.label(banks.as_str());
+                }
+                flight_label(ui, flight);
+            }
+        }
+        Ok(changed)
+    }
+
+    /// Maps still loading: keep redrawing until they are in.
+    fn settling(&self) -> bool {
+        matches!(self, Content::Store { stats, .. } if !stats.contains(" 0 missing"))
+    }
+}
+
+fn mode_box<T: Copy + PartialEq>(ui: &mut egui::Ui, list: &[(T, &str)], value: &mut T) {
+    let name = list.iter().find(|(m, _)| m == value).map_or("?", |(_, n)| *n);
+    egui::ComboBox::from_label("mode").selected_text(name).show_ui(ui, |ui| {
+        for (m, n) in list {
+            ui.selectable_value(value, *m, *n);
+        }
+    });
+}
+
+fn light_sliders(ui: &mut egui::Ui, light: &mut [f32; 2]) -> bool {
+    let a = ui.add(egui::Slider::new(&mut light[0], 0.0..=360.0).text("light azimuth °")).changed();
+    let e = ui.add(egui::Slider::new(&mut light[1], 5.0..=90.0).text("light elevation °")).changed();
+    a || e
+}
+
+fn flight_label(ui: &mut egui::Ui, f: &Flight) {
+    ui.label(format!(
+        "x {:.3}, y {:.3}, altitude {:.0}, pitch {:.0}° from the nadir, heading {:.0}°",
+        f.x, f.y, f.altitude, f.pitch, f.heading
+    ));
+    ui.label("W/S A/D fly, Q/E down/up, arrows or drag turn and tilt, wheel altitude");
+}
+
+struct ViewApp {
+    content: Content,
+    renderer: AnyRenderer,
+    size: Option<(u32, u32)>,
+    texture: Option<egui::TextureHandle>,
+    last: Option<Frame>,
+    dirty: bool,
+    frame_ms: f64,
+    frames: u32,
+    screenshot: Option<(PathBuf, u32)>,
+    window_screenshot: Option<(PathBuf, u32)>,
+    shots: u32,
+    status: String,
+    failure: std::sync::Arc<std::sync::Mutex<Option<CliError>>>,
+}
+
+impl ViewApp {
+    fn shoot(&mut self, path: &Path) {
+        self.status = match &self.last {
+            Some(f) => match save(f, path) {
+                Ok(()) => format!("wrote {} ({}x{})", path.display(), f.width, f.height),
+                Err(CliError::Input(e) | CliError::Internal(e)) => format!("screenshot failed: {e}"),
+            },
+            None => "nothing rendered yet".into(),
+        };
+    }
+
+    fn fail(&mut self, ctx: &egui::Context, e: CliError) {
+        if let Ok(mut f) = self.failure.lock() {
+            f.get_or_insert(e);
+        }
+        ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+    }
+}
+
+impl eframe::App for ViewApp {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        let ctx = ui.ctx().clone();
+        let mut controls_changed = Ok(false);
+        egui::Panel::left("controls").resizable(false).default_size(300.0).show(ui, |ui| {
+            ui.heading(format!("hitex view: {}", self.content.kind()));
+            let backend = match self.content {
+                Content::Ground { mode: GroundMode::Trilinear, .. } => "cpu (reference sampler)".to_string(),
+                Content::Ground { .. } => "cpu (emulated bank memory)".to_string(),
+                _ => self.renderer.name(),
+            };
+            ui.label(format!("backend: {backend}"));
+            ui.label(format!("frame: {:.1} ms ({} rendered)", self.frame_ms, self.frames));
+            ui.separator();
+            controls_changed = self.content.controls(ui);
+            ui.separator();
+            ui.label("drag: orbit (left), pan (right); wheel: zoom; P or F12: view screenshot; F11: window screenshot");
+            if !self.status.is_empty() {
+                ui.label(self.status.as_str());
+            }
+        });
+        match controls_changed {
+            Ok(c) => self.dirty |= c,
+            Err(e) => return self.fail(&ctx, e),
+        }
+        egui::CentralPanel::default().show(ui, |ui| {
+            // the view area, never more than the window (egui's first layout pass may know no size yet)
+            let avail = ui.available_size().min(ctx.content_rect().size()).max(egui::vec2(16.0, 16.0));
+            let ppp = ctx.pixels_per_point();
+            let (w, h) = self.size.unwrap_or((
+                ((avail.x * ppp) as u32).clamp(16, hitex_core::scene::desc::MAX_OUTPUT_SIDE),
+                ((avail.y * ppp) as u32).clamp(16, hitex_core::scene::desc::MAX_OUTPUT_SIDE),
+            ));
+            let stale = self.last.as_ref().is_none_or(|f| (f.width, f.height) != (w, h));
+            let scripted = self.screenshot.is_some() || self.window_screenshot.is_some();
+            if self.dirty || stale || self.content.settling() || scripted {
+                let t = Instant::now();
+                match self.content.render(&mut self.renderer, w, h) {
+                    Ok(f) => {
+                        self.frame_ms = t.elapsed().as_secs_f64() * 1e3;
+                        self.frames += 1;
+                        let img = egui::ColorImage::from_rgba_unmultiplied([w as usize, h as usize], &f.rgba);
+                        match &mut self.texture {
+                            Some(tex) => tex.set(img, egui::TextureOptions::NEAREST),
+                            None => self.texture = Some(ctx.load_texture("view", img, egui::TextureOptions::NEAREST)),
+                        }
+                        self.last = Some(f);
+                        self.dirty = false;
+                    }
+                    Err(e) => return self.fail(&ctx, e),
+                }
+            }
+            if let Some(tex) = &self.texture {
+                let shown = egui::vec2(w as f32 / ppp, h as f32 / ppp);
+                let fit = (avail.x / shown.x).min(avail.y / shown.y).min(1.0);
+                let img = egui::Image::new(tex).fit_to_exact_size(shown * fit).sense(egui::Sense::click_and_drag());
+                let resp = ui.add(img);
+                let moved = ctx.input(|i| self.content.interact(&resp, i, h as f32));
+                self.dirty |= moved;
+            }
+        });
+        if ctx.input(|i| i.key_pressed(egui::Key::F12) || i.key_pressed(egui::Key::P)) {
+            self.shots += 1;
+            let path = PathBuf::from(format!("hitex-view-{:04}.png", self.shots));
+            self.shoot(&path);
+        }
+        if ctx.input(|i| i.key_pressed(egui::Key::F11)) {
+            self.shots += 1;
+            let path = PathBuf::from(format!("hitex-window-{:04}.png", self.shots));
+            self.status = format!("wrote {}", path.display());
+            window_shot(&ctx, path, false);
+        }
+        if let Some((path, after)) = self.screenshot.clone()
+            && self.frames >= after
+        {
+            self.shoot(&path);
+            println!("{}", self.status);
+            self.screenshot = None;
+            if self.window_screenshot.is_none() {
+                ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            }
+        }
+        if let Some((path, after)) = self.window_screenshot.clone()
+            && self.frames >= after
+        {
+            // the next frame is captured; the callback closes the window
+            self.window_screenshot = None;
+            window_shot(&ctx, path, true);
+        }
+        if self.dirty || self.content.settling() || self.screenshot.is_some() || self.window_screenshot.is_some() {
+            ctx.request_repaint();
+        } else if matches!(self.content, Content::Store { .. } | Content::Ground { .. }) {
+            // keys held for flying arrive as state, not events
+            ctx.request_repaint_after(std::time::Duration::from_millis(16));
+        }
+    }
+}
+
+/// Captures the whole window on the next frame and writes it to `path`.
+fn window_shot(ctx: &egui::Context, path: PathBuf, then_close: bool) {
+    let c = ctx.clone();
+    ctx.request_screenshot(move |img| {
+        let rgba: Vec<u8> = img.pixels.iter().flat_map(|p| p.to_array()).collect();
+        match hitex_io::save_png(&path, img.size[0] as u32, img.size[1] as u32, &rgba) {
+            Ok(()) => println!("wrote {} ({}x{}, the window)", path.display(), img.size[0], img.size[1]),
+            Err(e) => eprintln!("hitex: window screenshot failed: {e}"),
+        }
+        if then_close {
+            c.send_viewport_cmd(egui::ViewportCommand::Close);
+        }
+    });
+    ctx.request_repaint();
+}
+
+/// Why no window can be opened, and what to use instead.
+fn no_window(why: &str) -> CliError {
+    CliError::Internal(format!(
+        "{why}; hitex view needs a window system (X11: DISPLAY). Without one, render headless: hitex render, \
+         hitex nurbs render, hitex btf render, hitex terrain fly or hitex terrain spans (with --backend cpu where \
+         there is no GPU)"
+    ))
+}
+
+/// `hitex view`.
+pub fn run(a: ViewArgs) -> Result<(), CliError> {
+    if a.frames == 0 || a.frames > 100_000 {
+        return Err(CliError::Input("--frames must be in 1..=100000".into()));
+    }
+    let aspect = a.size.map_or(a.window.0 as f32 / a.window.1 as f32, |(w, h)| w as f32 / h as f32);
+    // the input is checked before any window opens
+    let content = open(&a.input, a.mode.as_deref(), aspect)?;
+    if std::env::var_os("DISPLAY").is_none_or(|d| d.is_empty()) {
+        return Err(no_window("no display (DISPLAY is not set)"));
+    }
+    let renderer = AnyRenderer::open(a.backend.into())?;
+    let failure = std::sync::Arc::new(std::sync::Mutex::new(None));
+    let app = ViewApp {
+        content,
+        renderer,
+        size: a.size,
+        texture: None,
+        last: None,
+        dirty: true,
+        frame_ms: 0.0,
+        frames: 0,
+        screenshot: a.screenshot.clone().map(|p| (p, a.frames)),
+        window_screenshot: a.window_screenshot.clone().map(|p| (p, a.frames)),
+        shots: 0,
+        status: String::new(),
+        failure: failure.clone(),
+    };
+    let options = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_title(format!("hitex view {}", a.input))
+            .with_inner_size([a.window.0 as f32, a.window.1 as f32]),
+        ..Default::default()
+    };
+    eframe::run_native("hitex", options, Box::new(move |_cc| Ok(Box::new(app))))
+        .map_err(|e| no_window(&format!("cannot open a window: {e}")))?;
+    if let Some(e) = failure.lock().ok().and_then(|mut f| f.take()) {
+        return Err(e);
+    }
+    Ok(())
+}

@@ -1,0 +1,167 @@
+//! `hitex view` under Xvfb: a few frames in a real window, a screenshot, and
+//! the screenshot equal to the headless render of the same camera; without a
+//! display, one clear message.
+//!
+//! Needs Xvfb (installed by scripts/ensure-deps.sh): without it the window
+//! tests print SKIPPED, and fail instead when `HITEX_REQUIRE_VIEWER=1` (CI).
+
+mod common;
+
+use common::{error_lines, hitex, tmp};
+use std::path::Path;
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+/// A virtual X server on a display of its own, stopped when dropped.
+struct Xvfb {
+    child: Child,
+    display: String,
+}
+
+impl Xvfb {
+    fn start(n: u32) -> Option<Xvfb> {
+        let display = format!(":{n}");
+        let child = Command::new("Xvfb")
+            .args([display.as_str(), "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn();
+        let Ok(child) = child else {
+            let msg = "SKIPPED viewer: Xvfb is not installed (scripts/ensure-deps.sh installs it)";
+            if std::env::var("HITEX_REQUIRE_VIEWER").is_ok_and(|v| v == "1") {
+                panic!("{msg}, and HITEX_REQUIRE_VIEWER=1");
+            }
+            eprintln!("{msg}");
+            return None;
+        };
+        let x = Xvfb { child, display };
+        let socket = format!("/tmp/.X11-unix/X{n}");
+        let start = Instant::now();
+        while !Path::new(&socket).exists() {
+            assert!(start.elapsed() < Duration::from_secs(20), "Xvfb {} did not start", x.display);
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        Some(x)
+    }
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn view(display: &str, args: &[&str]) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_hitex"))
+        .arg("view")
+        .args(args)
+        .env("DISPLAY", display)
+        .env_remove("WAYLAND_DISPLAY")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > Duration::from_secs(240) {
+            let _ = child.kill();
+            panic!("hitex view {args:?} did not close");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    child.wait_with_output().unwrap()
+}
+
+fn pixels(p: &Path) -> (u32, u32, Vec<u8>) {
+    let img = image::open(p).unwrap_or_else(|e| panic!("{}: {e}", p.display())).into_rgba8();
+    (img.width(), img.height(), img.into_raw())
+}
+
+/// Mean absolute difference in 8-bit steps.
+fn mean_diff(a: &[u8], b: &[u8]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (*x as f64 - *y as f64).abs()).sum::<f64>() / a.len().max(1) as f64
+}
+
+#[test]
+fn screenshots_equal_the_headless_renders() {
+    // a display number of this process's own
+    let Some(x) = Xvfb::start(90 + std::process::id() % 100) else { return };
+    let d = tmp("view");
+    let scene = d.join("scene.toml");
+    std::fs::write(&scene, hitex_core::scene::SHOWCASE_TOML).unwrap();
+    let scene = scene.to_str().unwrap();
+    let shot = |name: &str| d.join(name).to_string_lossy().into_owned();
+    let cases: Vec<(Vec<String>, Vec<String>, &str)> = vec![
+        (
+            vec![scene.into(), "--backend".into(), "cpu".into()],
+            vec!["render".into(), scene.into(), "--backend".into(), "cpu".into()],
+            "scene-cpu",
+        ),
+        (
+            vec!["surface".into(), "--mode".into(), "isophote".into(), "--backend".into(), "cpu".into()],
+            vec![
+                "nurbs".into(),
+                "render".into(),
+                "surface".into(),
+                "--mode".into(),
+                "isophote".into(),
+                "--backend".into(),
+                "cpu".into(),
+            ],
+            "nurbs-cpu",
+        ),
+        (
+            vec![scene.into(), "--backend".into(), "auto".into()],
+            vec!["render".into(), scene.into(), "--backend".into(), "auto".into()],
+            "scene-auto",
+        ),
+    ];
+    for (view_args, render_args, name) in cases {
+        let png = shot(&format!("{name}-view.png"));
+        let mut a: Vec<&str> = view_args.iter().map(String::as_str).collect();
+        a.extend(["--size", "160x120", "--frames", "3", "--screenshot", &png]);
+        let o = view(&x.display, &a);
+        assert!(
+            o.status.success(),
+            "{name}: {}\n{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(String::from_utf8_lossy(&o.stdout).contains("wrote"), "{name}: {o:?}");
+        let reference = shot(&format!("{name}-render.png"));
+        let mut r: Vec<&str> = render_args.iter().map(String::as_str).collect();
+        r.extend(["--size", "160x120", "-o", &reference]);
+        let o = hitex(&r);
+        assert!(o.status.success(), "{name}: {o:?}");
+        let (va, vb) = (pixels(Path::new(&png)), pixels(Path::new(&reference)));
+        assert_eq!((va.0, va.1), (vb.0, vb.1), "{name}: sizes differ");
+        // the same renderer draws both: the CPU backend exactly, a GPU within the parity tolerance
+        let m = mean_diff(&va.2, &vb.2);
+        let tolerance = if name.ends_with("cpu") { 0.0 } else { 0.4 };
+        assert!(m <= tolerance, "{name}: mean |Δ| {m} > {tolerance}");
+        println!("{name}: view screenshot vs headless render, mean |Δ| = {m:.4}");
+    }
+}
+
+#[test]
+fn without_a_display_one_clear_message() {
+    let d = tmp("view-nodisplay");
+    let scene = d.join("scene.toml");
+    std::fs::write(&scene, hitex_core::scene::SHOWCASE_TOML).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_hitex"))
+        .args(["view", scene.to_str().unwrap()])
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{o:?}");
+    let e = error_lines(&o);
+    assert!(e.len() == 1 && e[0].contains("no display") && e[0].contains("hitex render"), "{e:?}");
+    // bad input is reported before any window is asked for
+    let o = hitex(&["view", "nowhere.igs"]);
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
+    let o = hitex(&["view", "surface", "--mode", "sparkle"]);
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
+    assert!(error_lines(&o).iter().any(|l| l.contains("isophote")), "{o:?}");
+}
