@@ -702,9 +702,8 @@ fn window_shot(ctx: &egui::Context, path: PathBuf, then_close: bool) {
 /// Why no window can be opened, and what to use instead.
 fn no_window(why: &str) -> CliError {
     CliError::Internal(format!(
-        "{why}; hitex view needs a window system (X11: DISPLAY). Without one, render headless: hitex render, \
-         hitex nurbs render, hitex btf render, hitex terrain fly or hitex terrain spans (with --backend cpu where \
-         there is no GPU)"
+        "{why}. Without a window, render headless: hitex render, hitex nurbs render, hitex btf render, \
+         hitex terrain fly or hitex terrain spans (with --backend cpu where there is no GPU)"
     ))
 }
 
@@ -717,7 +716,7 @@ pub fn run(a: ViewArgs) -> Result<(), CliError> {
     // the input is checked before any window opens
     let content = open(&a.input, a.mode.as_deref(), aspect)?;
     if std::env::var_os("DISPLAY").is_none_or(|d| d.is_empty()) {
-        return Err(no_window("no display (DISPLAY is not set)"));
+        return Err(no_window("no display: DISPLAY is not set (hitex view opens an X11 window)"));
     }
     let renderer = AnyRenderer::open(a.backend.into())?;
     let failure = std::sync::Arc::new(std::sync::Mutex::new(None));
@@ -742,8 +741,12 @@ pub fn run(a: ViewArgs) -> Result<(), CliError> {
             .with_inner_size([a.window.0 as f32, a.window.1 as f32]),
         ..Default::default()
     };
-    eframe::run_native("hitex", options, Box::new(move |_cc| Ok(Box::new(app))))
-        .map_err(|e| no_window(&format!("cannot open a window: {e}")))?;
+    eframe::run_native("hitex", options, Box::new(move |_cc| Ok(Box::new(app)))).map_err(|e| {
+        no_window(&format!(
+            "cannot open a window ({e}): it needs X11 and a wgpu adapter (a GPU, or Mesa's lavapipe: \
+                 apt-get install mesa-vulkan-drivers libvulkan1)"
+        ))
+    })?;
     if let Some(e) = failure.lock().ok().and_then(|mut f| f.take()) {
         return Err(e);
     }

@@ -142,6 +142,13 @@ fn screenshots_equal_the_headless_renders() {
         assert!(m <= tolerance, "{name}: mean |Δ| {m} > {tolerance}");
         println!("{name}: view screenshot vs headless render, mean |Δ| = {m:.4}");
     }
+    // a display but no adapter to draw the window with: one clear message, no panic
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_hitex"));
+    cmd.args(["view", "surface", "--frames", "1", "--screenshot", &shot("none.png")]);
+    let o = cmd.env("DISPLAY", &x.display).env("WGPU_BACKEND", "metal").output().unwrap();
+    assert_eq!(o.status.code(), Some(1), "{o:?}");
+    let e: Vec<String> = error_lines(&o).into_iter().filter(|l| l.contains("error")).collect();
+    assert!(e.len() == 1 && e[0].contains("cannot open a window") && e[0].contains("lavapipe"), "{e:?}");
 }
 
 #[test]
