@@ -85,8 +85,9 @@ fn mean_diff(a: &[u8], b: &[u8]) -> f64 {
 
 #[test]
 fn screenshots_equal_the_headless_renders() {
-    // a display number of this process's own
-    let Some(x) = Xvfb::start(90 + std::process::id() % 100) else { return };
+    // a display number of this process's own, not locked by another server
+    let n = (90 + std::process::id() % 100..400).find(|n| !Path::new(&format!("/tmp/.X{n}-lock")).exists());
+    let Some(x) = Xvfb::start(n.unwrap_or(399)) else { return };
     let d = tmp("view");
     let scene = d.join("scene.toml");
     std::fs::write(&scene, hitex_core::scene::SHOWCASE_TOML).unwrap();

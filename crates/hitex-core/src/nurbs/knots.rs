@@ -21,6 +21,9 @@ pub fn validate_knots(dir: &'static str, knots: &[f64], count: usize, p: usize) 
     if let Some(i) = knots.iter().position(|k| !k.is_finite()) {
         return Err(NurbsError::Knots { dir, message: format!("knot {i} is not finite ({})", knots[i]) });
     }
+    if let Some(i) = knots.iter().position(|k| k.abs() > super::surface::MAX_MAGNITUDE) {
+        return Err(NurbsError::Knots { dir, message: format!("knot {i} ({:e}) is beyond ±1e150", knots[i]) });
+    }
     if let Some(i) = knots.windows(2).position(|w| w[1] < w[0]) {
         return Err(NurbsError::Knots {
             dir,

@@ -187,6 +187,10 @@ pub fn normal_f64(d: &SurfaceDerivs<f64>, toward_u: f64, toward_v: f64) -> Optio
     unit(cross(a, b))
 }
 
+/// Largest coordinate, weight and knot magnitude accepted (and smallest
+/// weight, its inverse): products and sums of the evaluation stay finite.
+pub const MAX_MAGNITUDE: f64 = 1e150;
+
 impl NurbsSurface {
     /// A validated surface.
     pub fn new(
@@ -218,6 +222,15 @@ impl NurbsSurface {
             }
             if c[3] <= 0.0 {
                 return Err(NurbsError::ControlPoint { i, j, message: format!("weight {} is not positive", c[3]) });
+            }
+            // weighted sums of such values stay finite in f64
+            if c[..3].iter().any(|x| x.abs() > MAX_MAGNITUDE) || !(1.0 / MAX_MAGNITUDE..=MAX_MAGNITUDE).contains(&c[3])
+            {
+                return Err(NurbsError::ControlPoint {
+                    i,
+                    j,
+                    message: format!("{c:?}: coordinates beyond ±1e150 or a weight outside [1e-150, 1e150]"),
+                });
             }
         }
         Ok(Self { degree_u, degree_v, count_u, count_v, knots_u, knots_v, points })
