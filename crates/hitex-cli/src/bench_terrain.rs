@@ -1,17 +1,17 @@
 //! `hitex bench terrain`: the same flight frames over a GST store on both
-//! backends (per-pixel trilinear through the resident-map cache), and the
-//! span-parallel variants of eq. (8)–(10) on the same views (CPU emulation
-//! of the bank memory) with their image difference and bank conflicts.
+//! backends through the resident-map cache, per-pixel trilinear and the
+//! span-parallel samplers of eq. (8)–(10) (3×3 banks, 4×4 banks, bicubic),
+//! with each span sampler's image difference against trilinear and its
+//! bank traffic (recorded by the CPU backend's bank model).
 
-use crate::bench::{Backends, CaseFn, Report, Row, median, print_table, run_case_fns};
+use crate::bench::{Backends, CaseFn, Report, print_table, run_case_fns};
 use crate::terrain_store_cmd::{PathKey, camera_at, frame_setup, open_cache};
 use crate::{AnyRenderer, CliError, parse_size};
 use glam::DVec2;
-use hitex_core::texture::span::{
-    BankModel, FlightView, SpanFilter, SpanOptions, SpanScheme, psnr, render_spans, render_trilinear, ssim,
-};
-use hitex_core::texture::{ColorSpace, Image, MipPyramid, Wrap};
+use hitex_core::texture::span::{BankModel, RgbaFrame, psnr, ssim};
 use hitex_io::gst::{BuildOptions, ProceduralSource, StoreMeta, TILE, TileSource, build_store};
+use hitex_render::cpu::terrain::render_fly;
+use hitex_render::terrain::{FlyGround, FlySampler};
 use serde::Serialize;
 use std::cell::RefCell;
 use std::time::Instant;
@@ -49,6 +49,8 @@ pub struct SpanRow {
     pub bank_conflicts: u64,
     /// Span accesses over the whole flight.
     pub accesses: u64,
+    /// Mean λ read (levels below the finest).
+    pub mean_level: f64,
 }
 
 /// The whole report.
@@ -124,74 +126,53 @@ pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
         );
         resident = (resident.0.max(s.resident), resident.1.max(s.bytes));
     }
-    let f: CaseFn = Box::new(|r: &mut AnyRenderer, i: u32, _k: u32, w: u32, h: u32| {
+    // one case per sampler, the same frames through the same page tables on both backends
+    let case = |sampler: FlySampler| -> CaseFn {
+        let (cache, meta, key) = (&cache, &meta, &key);
+        Box::new(move |r: &mut AnyRenderer, i: u32, _k: u32, w: u32, h: u32| {
+            let mut start = Instant::now();
+            let cam = camera_at(&key(i), meta, extent, 45.0);
+            let (_, u, pages) =
+                frame_setup(&mut cache.borrow_mut(), meta, &cam, (w, h), 45.0, per_side, false, &mut start);
+            r.render_fly(&u.with_sampler(sampler), &pages, FlyGround::Flat).map(|f| f.0)
+        })
+    };
+    let cases: Vec<(String, CaseFn)> = FlySampler::ALL.iter().map(|&s| (s.name().to_string(), case(s))).collect();
+    let timing = run_case_fns("terrain", &cases, frames, a.size, a.backends, a.json)?;
+    // quality and bank traffic of every span sampler against per-pixel
+    // trilinear, on the CPU (which models the banks), over the same frames
+    let mut acc: Vec<(f64, f64, BankModel)> = Vec::new();
+    for i in 0..frames {
         let mut start = Instant::now();
         let cam = camera_at(&key(i), &meta, extent, 45.0);
         let (_, u, pages) =
             frame_setup(&mut cache.borrow_mut(), &meta, &cam, (w, h), 45.0, per_side, false, &mut start);
-        r.render_fly(&u, &pages)
-    });
-    let mut timing = run_case_fns("terrain", &[("trilinear".to_string(), f)], frames, a.size, a.backends, a.json)?;
-    // span cases on the same views, from the source's full pyramid
-    let img = Image::new(
-        a.source,
-        a.source,
-        ColorSpace::Srgb,
-        src.read(0, 0, a.source, a.source)?.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect(),
-    )
-    .map_err(|e| CliError::Internal(e.to_string()))?;
-    let pyr = MipPyramid::build(img);
-    let _ = pyr.linear_level(0);
-    let views: Vec<FlightView> = (0..frames)
-        .map(|i| {
-            let k = key(i);
-            FlightView {
-                position: [k.x * extent.x, k.y * extent.y],
-                altitude: k.altitude,
-                pitch_deg: 90.0 - k.pitch,
-                heading_deg: k.heading,
-                fov_deg: 45.0,
-                width: w,
-                height: h,
+        let rgba = |f: hitex_render::Frame| RgbaFrame { width: f.width, height: f.height, rgba: f.rgba };
+        let reference = rgba(render_fly(&u, &pages, FlyGround::Flat)?.frame);
+        for (k, s) in FlySampler::ALL[1..].iter().enumerate() {
+            let f = render_fly(&u.with_sampler(*s), &pages, FlyGround::Flat)?;
+            let banks = f.banks.unwrap_or_default();
+            let f = rgba(f.frame);
+            if acc.len() <= k {
+                acc.push((0.0, 0.0, BankModel::default()));
             }
-        })
-        .collect();
-    let refs: Vec<_> = views.iter().map(|v| render_trilinear(&pyr, v, Wrap::Clamp)).collect();
-    let mut spans = Vec::new();
-    for (name, scheme, filter) in [
-        ("span3", SpanScheme::Banks3x3, SpanFilter::Bilinear),
-        ("span4", SpanScheme::Banks4x4, SpanFilter::Bilinear),
-        ("bicubic", SpanScheme::Banks4x4, SpanFilter::Bicubic),
-    ] {
-        let opts = SpanOptions { scheme, filter, wrap: Wrap::Clamp, level_shift: 0 };
-        let mut banks = BankModel::new(scheme);
-        let (mut times, mut p, mut s) = (Vec::new(), 0.0, 0.0);
-        for (v, r) in views.iter().zip(&refs) {
-            let t = Instant::now();
-            let f = render_spans(&pyr, v, &opts, &mut banks);
-            times.push(t.elapsed().as_secs_f64() * 1e3);
-            p += psnr(r, &f);
-            s += ssim(r, &f);
+            acc[k].0 += psnr(&reference, &f);
+            acc[k].1 += ssim(&reference, &f);
+            acc[k].2.merge(banks);
         }
-        let ms = median(&mut times);
-        timing.rows.push(Row {
-            case: name.into(),
-            backend: "cpu".into(),
-            adapter: format!("cpu ({} threads), bank emulation", rayon::current_num_threads()),
-            width: w,
-            height: h,
-            frames,
-            ms_median: ms,
-            fps_median: 1e3 / ms,
-        });
-        spans.push(SpanRow {
-            case: name.into(),
+    }
+    let spans: Vec<SpanRow> = FlySampler::ALL[1..]
+        .iter()
+        .zip(acc)
+        .map(|(s, (p, q, banks))| SpanRow {
+            case: s.name().into(),
             psnr_db: p / frames as f64,
-            ssim: s / frames as f64,
+            ssim: q / frames as f64,
             bank_conflicts: banks.conflicts,
             accesses: banks.accesses,
-        });
-    }
+            mean_level: banks.mean_level(),
+        })
+        .collect();
     let _ = std::fs::remove_dir_all(&dir);
     let report = TerrainReport {
         timing,
@@ -212,9 +193,15 @@ pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
             report.resident_bytes as f64 / 1048576.0,
             report.store_maps
         );
-        println!("{:<10} {:>10} {:>8} {:>15} {:>12}", "case", "PSNR dB", "SSIM", "bank conflicts", "accesses");
+        println!(
+            "{:<10} {:>10} {:>8} {:>15} {:>12} {:>11}",
+            "case", "PSNR dB", "SSIM", "bank conflicts", "accesses", "mean level"
+        );
         for s in &report.spans {
-            println!("{:<10} {:>10.2} {:>8.4} {:>15} {:>12}", s.case, s.psnr_db, s.ssim, s.bank_conflicts, s.accesses);
+            println!(
+                "{:<10} {:>10.2} {:>8.4} {:>15} {:>12} {:>11.2}",
+                s.case, s.psnr_db, s.ssim, s.bank_conflicts, s.accesses, s.mean_level
+            );
         }
     }
     Ok(())

@@ -129,10 +129,16 @@ fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) ->
     Ok(4)
 }
 
-/// The terrain pillar of the showcase, on procedural imagery (no files
-/// needed): a GST store built into `out/terrain-store`, three frames of an
-/// orbit through the resident-map cache side by side, and per-pixel
-/// trilinear | span 3×3 | span 4×4 | difference. Returns the images written.
+/// The Olinda pair (SRTM-derived DEM and Landsat 7 ETM+ bands, UTM 25S),
+/// embedded so that the showcase needs no files.
+const OLINDA_DEM: &[u8] = include_bytes!("../../hitex-io/data/olinda/olinda_dem_utm25s.tif");
+const OLINDA_IMAGE: &[u8] = include_bytes!("../../hitex-io/data/olinda/L7_ETMs.tif");
+
+/// The terrain pillar of the showcase over the real Olinda pair: a GST
+/// store built from the Landsat bands 3,2,1 with the DEM copied in
+/// (`out/olinda/store`), three frames of a flight over the relief with an
+/// aircraft carrying a generic texture, and one view per sampler —
+/// per-pixel trilinear | span 3×3 | span 4×4 | |trilinear − span 3×3| × 8.
 fn terrain_showcase(
     out: &Path,
     backend: BackendChoice,
@@ -140,72 +146,89 @@ fn terrain_showcase(
     h: u32,
     report: &mut Report<'_>,
 ) -> Result<usize, CliError> {
-    use crate::terrain_store_cmd::{BuildArgs, FlyArgs, build, fly};
-    let store = out.join("terrain-store");
-    println!("  terrain: building a 4096x4096 procedural GST store in {}", store.display());
+    use crate::terrain_store_cmd::{BuildArgs, FlyArgs, GroundArg, SamplerArg, build, fly};
+    let dir = out.join("olinda");
+    std::fs::create_dir_all(&dir).map_err(|e| CliError::Internal(format!("cannot create {}: {e}", dir.display())))?;
+    let (dem, image) = (dir.join("olinda_dem_utm25s.tif"), dir.join("L7_ETMs.tif"));
+    hitex_io::write_atomic(&dem, OLINDA_DEM)?;
+    hitex_io::write_atomic(&image, OLINDA_IMAGE)?;
+    let store = dir.join("store");
+    println!("  terrain: building the Olinda GST store (Landsat 7 bands 3,2,1 + DEM) in {}", store.display());
     build(BuildArgs {
-        image: None,
+        image: Some(image),
         bands: "3,2,1".into(),
-        dem: None,
-        procedural: Some((4096, 4096)),
+        dem: Some(dem),
+        procedural: None,
         output: store.clone(),
         shard: (0, 1),
     })?;
-    let frames_dir = out.join("terrain-flight");
-    let (pw, ph) = ((w / 3).max(1), h);
-    let t = Instant::now();
-    fly(FlyArgs {
-        store,
+    let backend = match backend {
+        BackendChoice::Auto => crate::Backend::Auto,
+        BackendChoice::Cpu => crate::Backend::Cpu,
+        BackendChoice::Gpu => crate::Backend::Gpu,
+    };
+    let flight = |frames: u32, size: (u32, u32), sampler: SamplerArg, output: std::path::PathBuf| FlyArgs {
+        store: store.clone(),
         path: None,
-        frames: 3,
-        size: (pw, ph),
+        frames,
+        size,
         budget: 400,
-        altitude: Some(300.0),
-        pitch: 40.0,
+        altitude: Some(2500.0),
+        pitch: 62.0,
         fov: 45.0,
         wait: true,
-        output: frames_dir.clone(),
-        backend: match backend {
-            BackendChoice::Auto => crate::Backend::Auto,
-            BackendChoice::Cpu => crate::Backend::Cpu,
-            BackendChoice::Gpu => crate::Backend::Gpu,
-        },
-    })?;
+        output,
+        backend,
+        ground: GroundArg::Relief,
+        sampler,
+        exaggeration: 3.0,
+        no_aircraft: false,
+    };
+    let load = |path: &Path| -> Result<Frame, CliError> {
+        let img = hitex_io::load_image(path, hitex_core::texture::ColorSpace::Srgb)?;
+        Ok(Frame { width: img.width(), height: img.height(), rgba: img.bytes().to_vec() })
+    };
+    let frames_dir = out.join("terrain-flight");
+    let t = Instant::now();
+    fly(flight(3, ((w / 3).max(2) & !1, h & !1), SamplerArg::Trilinear, frames_dir.clone()))?;
     let ms = t.elapsed().as_secs_f64() * 1e3;
-    let mut panels = Vec::new();
-    for f in 0..3 {
-        let img =
-            hitex_io::load_image(&frames_dir.join(format!("frame-{f:04}.png")), hitex_core::texture::ColorSpace::Srgb)?;
-        panels.push(Frame { width: img.width(), height: img.height(), rgba: img.bytes().to_vec() });
-    }
+    let panels = (0..3).map(|f| load(&frames_dir.join(format!("frame-{f:04}.png")))).collect::<Result<Vec<_>, _>>()?;
     report(
         "terrain-flight.png",
-        "flight over a GST store through the resident-map cache (3 frames)",
+        "Olinda: relief ×3 and an aircraft, Landsat maps through the resident-map cache (3 frames)",
         &side_by_side(&panels),
         ms,
     )?;
+    let size = ((w / 4).max(2) & !1, (h / 2).max(2) & !1);
     let t = Instant::now();
-    let spans_png = out.join("terrain-spans.png");
-    crate::terrain_cmd::spans(crate::terrain_cmd::SpansArgs {
-        image: None,
-        bands: "3,2,1".into(),
-        pattern: "bricks".into(),
-        texture_size: 1024,
-        altitude: None,
-        pitch: 30.0,
-        heading: 30.0,
-        fov: 45.0,
-        frames: 2,
-        step: None,
-        size: ((w / 4).max(2) & !1, (h / 2).max(2) & !1),
-        output: spans_png.clone(),
-    })?;
-    println!(
-        "  {:<28} {:>13} {:>8.1} ms  trilinear | span 3x3 | span 4x4 | |trilinear - span 3x3| x 8",
-        spans_png.display(),
-        "",
-        t.elapsed().as_secs_f64() * 1e3
-    );
+    let mut panels = Vec::new();
+    for (name, s) in [("trilinear", SamplerArg::Trilinear), ("span3", SamplerArg::Span3), ("span4", SamplerArg::Span4)]
+    {
+        let d = out.join(format!("terrain-{name}"));
+        fly(flight(1, size, s, d.clone()))?;
+        panels.push(load(&d.join("frame-0000.png"))?);
+    }
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    let diff = Frame {
+        width: panels[0].width,
+        height: panels[0].height,
+        rgba: panels[0]
+            .rgba
+            .chunks_exact(4)
+            .zip(panels[1].rgba.chunks_exact(4))
+            .flat_map(|(a, b)| {
+                let d = |k: usize| ((a[k] as i32 - b[k] as i32).unsigned_abs() * 8).min(255) as u8;
+                [d(0), d(1), d(2), 255]
+            })
+            .collect(),
+    };
+    panels.push(diff);
+    report(
+        "terrain-spans.png",
+        "Olinda: trilinear | span 3x3 | span 4x4 | |trilinear - span 3x3| x 8",
+        &side_by_side(&panels),
+        ms,
+    )?;
     Ok(2)
 }
 

@@ -270,11 +270,18 @@ impl AnyRenderer {
         &mut self,
         u: &hitex_render::terrain::FlyUniform,
         pages: &hitex_render::terrain::FlyPages,
-    ) -> Result<Frame, RenderError> {
-        self.run(|b| match b {
-            Engine::Cpu(_) => hitex_render::cpu::terrain::render_fly(u, pages),
-            Engine::Gpu(g) => g.render_fly(u, pages),
-        })
+        ground: hitex_render::terrain::FlyGround<'_>,
+    ) -> Result<(Frame, Option<hitex_core::texture::span::BankModel>), RenderError> {
+        let mut banks = None;
+        let frame = self.run(|b| match b {
+            Engine::Cpu(_) => {
+                let f = hitex_render::cpu::terrain::render_fly(u, pages, ground)?;
+                banks = f.banks;
+                Ok(f.frame)
+            }
+            Engine::Gpu(g) => g.render_fly(u, pages, ground),
+        })?;
+        Ok((frame, banks))
     }
     /// Renders one frame.
     pub fn render(

@@ -127,16 +127,9 @@ pub struct RenderArgs {
 pub(crate) fn stretched(img: &GeoRaster, bands: [usize; 3]) -> Result<Image, CliError> {
     let mut lo_hi = [(0.0f32, 1.0f32); 3];
     for (k, &b) in bands.iter().enumerate() {
-        let mut v: Vec<f32> = (0..img.width * img.height)
-            .map(|i| img.data[i as usize * img.bands + b])
-            .filter(|x| x.is_finite())
-            .collect();
-        v.sort_by(|a, b| a.total_cmp(b));
-        if v.is_empty() {
-            return Err(CliError::Input(format!("band {} has no finite samples", b + 1)));
-        }
-        let (lo, hi) = (v[v.len() * 2 / 100], v[(v.len() * 98 / 100).min(v.len() - 1)]);
-        lo_hi[k] = (lo, if hi > lo { hi } else { lo + 1.0 });
+        let v = (0..img.width as usize * img.height as usize).map(|i| img.data[i * img.bands + b]);
+        lo_hi[k] = hitex_io::geotiff::stretch_range(v)
+            .ok_or_else(|| CliError::Input(format!("band {} has no finite samples", b + 1)))?;
     }
     Image::from_fn(img.width, img.height, ColorSpace::Srgb, |x, y| {
         let c = |k: usize| {

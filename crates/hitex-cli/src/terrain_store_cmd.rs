@@ -6,9 +6,9 @@ use clap::Args;
 use glam::DVec2;
 use hitex_core::residency::{MapKey, ResidentMaps, View, active_maps};
 use hitex_io::gst::{
-    BuildOptions, MemorySource, ProceduralSource, StoreMeta, TILE, TileSource, build_store, open_store, read_tile,
+    BuildOptions, GeoTiffSource, ProceduralSource, StoreMeta, TILE, TileSource, build_store, open_store, read_tile,
 };
-use hitex_render::terrain::{FlyCamera, FlyPages, FlyUniform};
+use hitex_render::terrain::{FlyCamera, FlyGround, FlyMesh, FlyPages, FlySampler, FlyUniform, GenericTexture};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -63,13 +63,14 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
     let t = Instant::now();
     let (source, meta): (Box<dyn TileSource>, StoreMeta) = match (&a.image, a.procedural) {
         (Some(path), _) => {
-            let img = hitex_io::geotiff::load_geotiff(path)?;
+            // read by windows: memory stays bounded whatever the file's size
+            let tiff = hitex_io::geotiff::GeoTiffWindows::open(path)?;
+            let img = tiff.header.clone();
             if let Some(d) = &a.dem {
                 let dem = hitex_io::dem::load_elevation(d)?;
                 crate::terrain_cmd::check_coregistered(&dem, &img, d, path)?;
             }
             let bands = crate::terrain_cmd::parse_bands(&a.bands, &img, path)?;
-            let rgb = crate::terrain_cmd::stretched(&img, bands)?;
             let name = format!("{} bands {}", path.display(), a.bands);
             let meta = StoreMeta::for_source(
                 img.width,
@@ -79,8 +80,7 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
                 &img.epsg.map_or_else(|| img.crs_name(), |e| format!("EPSG:{e}")),
                 &name,
             );
-            let src = MemorySource { width: img.width, height: img.height, rgba: rgb.bytes().to_vec(), name };
-            (Box::new(src), meta)
+            (Box::new(GeoTiffSource::new(tiff, bands, name)?), meta)
         }
         (None, Some((w, h))) => {
             let src = ProceduralSource { width: w, height: h, seed: 1 };
@@ -157,6 +157,157 @@ pub struct FlyArgs {
     /// Which renderer to use.
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
     pub backend: Backend,
+    /// Ground: the store's DEM as a mesh (relief), flat ground (eq. (1)), or
+    /// relief when the store holds a DEM (auto).
+    #[arg(long, value_enum, default_value_t = GroundArg::Auto)]
+    pub ground: GroundArg,
+    /// Texture filter: per-pixel trilinear, 2×2 spans from 3×3 / 4×4 banks, or bicubic.
+    #[arg(long, value_enum, default_value_t = SamplerArg::Trilinear)]
+    pub sampler: SamplerArg,
+    /// Heights × this over the relief.
+    #[arg(long, default_value_t = 3.0)]
+    pub exaggeration: f64,
+    /// No aircraft ahead of the camera (relief only).
+    #[arg(long)]
+    pub no_aircraft: bool,
+}
+
+/// What the flight draws under the sky.
+#[derive(Clone, Copy, clap::ValueEnum, PartialEq, Eq, Debug)]
+pub enum GroundArg {
+    /// Relief when the store holds a DEM, else flat.
+    Auto,
+    /// Flat ground at height 0, solved per pixel.
+    Flat,
+    /// The store's DEM as a mesh.
+    Relief,
+}
+
+/// The flight's texture filter.
+#[derive(Clone, Copy, clap::ValueEnum, PartialEq, Eq, Debug)]
+pub enum SamplerArg {
+    /// Per pixel, eq. (1)–(4).
+    Trilinear,
+    /// 2×2 spans, 3×3 banks.
+    Span3,
+    /// 2×2 spans, 4×4 banks.
+    Span4,
+    /// Catmull-Rom inside the 4×4-bank mspan.
+    Bicubic,
+}
+
+impl From<SamplerArg> for FlySampler {
+    fn from(s: SamplerArg) -> Self {
+        match s {
+            SamplerArg::Trilinear => FlySampler::Trilinear,
+            SamplerArg::Span3 => FlySampler::Span3,
+            SamplerArg::Span4 => FlySampler::Span4,
+            SamplerArg::Bicubic => FlySampler::Bicubic,
+        }
+    }
+}
+
+/// The store's DEM placed on its maps, meshed per frame with a level of
+/// detail that follows the eye, and the aircraft flown ahead of the camera.
+pub struct Relief {
+    heights: Vec<f32>,
+    w: usize,
+    h: usize,
+    /// Map texels of post (0, 0) and between posts.
+    origin: [f64; 2],
+    spacing: [f64; 2],
+    /// Map texels per metre of height (with the exaggeration).
+    height_scale: f64,
+    /// The aircraft's texture.
+    pub generic: GenericTexture,
+    /// Draw the aircraft.
+    pub aircraft: bool,
+    /// Where the DEM came from.
+    pub path: PathBuf,
+}
+
+/// Direction towards the sun (south-east, 50° up).
+const SUN: [f32; 3] = [0.49, 0.49, 0.72];
+
+impl Relief {
+    /// The DEM stored beside the maps (`dem.*`, copied in by `terrain build --dem`), if any.
+    pub fn open(store: &Path, meta: &StoreMeta, exaggeration: f64) -> Result<Option<Self>, CliError> {
+        let Ok(entries) = std::fs::read_dir(store) else { return Ok(None) };
+        let mut found: Vec<PathBuf> = entries
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.file_stem().is_some_and(|s| s == "dem") && p.is_file())
+            .collect();
+        found.sort();
+        let Some(path) = found.into_iter().next() else { return Ok(None) };
+        if !(exaggeration.is_finite() && exaggeration >= 0.0) {
+            return Err(CliError::Input(format!("--exaggeration {exaggeration} must be finite and ≥ 0")));
+        }
+        let mut dem = hitex_io::dem::load_elevation(&path)?;
+        let filled = hitex_io::geotiff::fill_holes(&mut dem);
+        if filled == (dem.width as usize * dem.height as usize) {
+            return Err(CliError::Input(format!("{}: every elevation sample is nodata", path.display())));
+        }
+        if meta.pixel[0] <= 0.0 || meta.pixel[1] <= 0.0 {
+            return Err(CliError::Input(format!("{}: the store's texel size is not positive", store.display())));
+        }
+        let heights: Vec<f32> =
+            (0..dem.width as usize * dem.height as usize).map(|i| dem.data[i * dem.bands]).collect();
+        // post (i, j) lies at the centre of DEM pixel (i, j); map texels count from the store's north-west corner
+        let origin = [
+            (dem.origin[0] + 0.5 * dem.pixel[0] - meta.origin[0]) / meta.pixel[0],
+            (meta.origin[1] - (dem.origin[1] - 0.5 * dem.pixel[1])) / meta.pixel[1],
+        ];
+        let spacing = [dem.pixel[0] / meta.pixel[0], dem.pixel[1] / meta.pixel[1]];
+        Ok(Some(Self {
+            heights,
+            w: dem.width as usize,
+            h: dem.height as usize,
+            origin,
+            spacing,
+            height_scale: exaggeration / meta.pixel[0],
+            generic: GenericTexture::livery(),
+            aircraft: true,
+            path,
+        }))
+    }
+
+    /// Ground height (map texels) under map point (x, y): the nearest post, 0 off the grid.
+    pub fn height_at(&self, x: f64, y: f64) -> f64 {
+        let (i, j) =
+            (((x - self.origin[0]) / self.spacing[0]).round(), ((y - self.origin[1]) / self.spacing[1]).round());
+        if !(i >= 0.0 && j >= 0.0 && i < self.w as f64 && j < self.h as f64) {
+            return 0.0;
+        }
+        let v = self.heights[j as usize * self.w + i as usize] as f64 * self.height_scale;
+        if v.is_finite() { v } else { 0.0 }
+    }
+
+    /// The frame's mesh: the DEM at the detail the eye needs, and the aircraft.
+    pub fn mesh(&self, cam: &FlyCamera, width: u32) -> Result<FlyMesh, CliError> {
+        let opts = hitex_core::terrain::LodOptions {
+            origin: self.origin,
+            spacing: self.spacing,
+            height_scale: self.height_scale,
+            eye: cam.eye,
+            pixels_per_tan: width as f64 / (2.0 * cam.tan_h),
+            max_edge_px: 6.0,
+            block: 32,
+        };
+        let lod = hitex_core::terrain::lod_mesh(&self.heights, self.w, self.h, &opts)
+            .map_err(|e| CliError::Input(format!("{}: {e}", self.path.display())))?;
+        let mut mesh = FlyMesh::from_lod(&lod);
+        if self.aircraft {
+            let agl = (cam.eye[2] - self.height_at(cam.eye[0], cam.eye[1])).max(1.0);
+            let d = 0.45 * agl;
+            let at: [f64; 3] =
+                std::array::from_fn(|i| cam.eye[i] + cam.fwd[i] * d + cam.right[i] * 0.12 * d - cam.up[i] * 0.12 * d);
+            // the camera's heading: right = (cos h, sin h)
+            let heading = cam.right[1].atan2(cam.right[0]).to_degrees();
+            mesh.append(&FlyMesh::aircraft(at, heading, 0.16 * d, SUN));
+        }
+        Ok(mesh)
+    }
 }
 
 /// One key of a flight path.
@@ -312,24 +463,45 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
         .map_err(|e| CliError::Input(e.to_string()))?
         .first()
         .map_or(6, |l| l.per_side);
+    let relief = match a.ground {
+        GroundArg::Flat => None,
+        GroundArg::Auto => Relief::open(&a.store, &meta, a.exaggeration)?,
+        GroundArg::Relief => Some(Relief::open(&a.store, &meta, a.exaggeration)?.ok_or_else(|| {
+            CliError::Input(format!(
+                "{} holds no DEM (dem.*): build it with --dem, or fly --ground flat",
+                a.store.display()
+            ))
+        })?),
+    };
+    let relief = relief.map(|mut r| {
+        r.aircraft = !a.no_aircraft;
+        r
+    });
+    let sampler = FlySampler::from(a.sampler);
     let mut cache = open_cache(&a.store, &meta, a.budget)?;
     let mut renderer = AnyRenderer::open(a.backend.into())?;
     let (t0, t1) = (keys[0].t, keys[keys.len() - 1].t);
     let mut times = Vec::new();
     let mut peak = (0usize, 0usize);
     println!(
-        "flying over {} ({} levels, {}x{} texels) at {w}x{h}, budget {} maps, {}:",
+        "flying over {} ({} levels, {}x{} texels, {}) at {w}x{h}, {}, budget {} maps, {}:",
         a.store.display(),
         meta.levels,
         meta.width,
         meta.height,
+        match &relief {
+            Some(r) => format!("relief from {} ×{}", r.path.display(), a.exaggeration),
+            None => "flat ground".into(),
+        },
+        sampler.name(),
         a.budget,
         renderer.name()
     );
     println!(
-        "{:>6} {:>9} {:>7} {:>9} {:>9} {:>8} {:>7} {:>10}",
-        "frame", "ms", "needed", "resident", "requested", "missing", "failed", "memory"
+        "{:>6} {:>9} {:>7} {:>9} {:>9} {:>8} {:>7} {:>10} {:>10} {:>10}",
+        "frame", "ms", "needed", "resident", "requested", "missing", "failed", "memory", "triangles", "conflicts"
     );
+    let mut conflicts = (0u64, 0u64);
     for f in 0..a.frames.max(1) {
         // a path ends on its last key; an orbit is periodic (its last key is its first)
         let t = match (&a.path, a.frames) {
@@ -340,21 +512,54 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
         let k = at_time(&keys, t);
         let mut start = Instant::now();
         let cam = camera_at(&k, &meta, extent, a.fov);
+        if let Some(r) = &relief {
+            let ground = r.height_at(cam.eye[0], cam.eye[1]);
+            if cam.eye[2] <= ground {
+                return Err(CliError::Input(format!(
+                    "frame {f}: the camera ({:.0} m) is below the ground ({:.0} m with the exaggeration)",
+                    cam.eye[2] * metres,
+                    ground * metres
+                )));
+            }
+        }
         let (stats, u, pages) = frame_setup(&mut cache, &meta, &cam, (w, h), a.fov, per_side, a.wait, &mut start);
-        let frame = renderer.render_fly(&u, &pages)?;
+        let u = u.with_sampler(sampler);
+        let mesh = relief.as_ref().map(|r| r.mesh(&cam, w)).transpose()?;
+        let ground = match (&relief, &mesh) {
+            (Some(r), Some(m)) => FlyGround::Mesh { mesh: m, generic: &r.generic },
+            _ => FlyGround::Flat,
+        };
+        let (frame, banks) = renderer.render_fly(&u, &pages, ground)?;
         let ms = start.elapsed().as_secs_f64() * 1e3;
         times.push(ms);
         peak = (peak.0.max(stats.resident), peak.1.max(stats.bytes));
         save(&frame, &a.output.join(format!("frame-{f:04}.png")))?;
+        if let Some(b) = &banks {
+            conflicts = (conflicts.0 + b.conflicts, conflicts.1 + b.accesses);
+        }
         println!(
-            "{f:>6} {ms:>9.1} {:>7} {:>9} {:>9} {:>8} {:>7} {:>6.1} MiB",
+            "{f:>6} {ms:>9.1} {:>7} {:>9} {:>9} {:>8} {:>7} {:>6.1} MiB {:>10} {:>10}",
             stats.needed,
             stats.resident,
             stats.requested,
             stats.missing,
             stats.failed,
-            stats.bytes as f64 / 1048576.0
+            stats.bytes as f64 / 1048576.0,
+            mesh.as_ref().map_or(0, |m| m.triangles()),
+            banks.as_ref().map_or_else(|| "-".to_string(), |b| b.conflicts.to_string())
         );
+    }
+    if sampler != FlySampler::Trilinear {
+        if conflicts.1 > 0 {
+            println!(
+                "bank conflicts: {} in {} span accesses ({} banks)",
+                conflicts.0,
+                conflicts.1,
+                sampler.banks().pow(2)
+            );
+        } else {
+            println!("bank conflicts: not modelled on {} (the CPU backend records them)", renderer.name());
+        }
     }
     let med = crate::bench::median(&mut times);
     println!(

@@ -96,3 +96,112 @@ fn bench_terrain_reports_every_case() {
     }
     assert!(v["resident_maps"].as_u64().unwrap() >= 1);
 }
+
+/// The Olinda pair kept beside the readers (the same files as ../shared/data/terrain).
+fn olinda(name: &str) -> String {
+    format!("{}/../hitex-io/data/olinda/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+#[test]
+fn olinda_relief_flight_with_the_span_samplers() {
+    let d = tmp("store-olinda");
+    let store = d.join("store");
+    let s = store.to_str().unwrap();
+    let (dem, image) = (olinda("olinda_dem_utm25s.tif"), olinda("L7_ETMs.tif"));
+    let o = hitex(&["terrain", "build", "--image", &image, "--dem", &dem, "-o", s]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(store.join("dem.tif").exists());
+    for sampler in ["trilinear", "span3", "span4", "bicubic"] {
+        let frames = d.join(format!("frames-{sampler}"));
+        let o = hitex(&[
+            "terrain",
+            "fly",
+            s,
+            "--frames",
+            "2",
+            "--size",
+            "96x64",
+            "--altitude",
+            "2500",
+            "--pitch",
+            "62",
+            "--wait",
+            "--backend",
+            "cpu",
+            "--sampler",
+            sampler,
+            "-o",
+            frames.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{sampler}: {}", String::from_utf8_lossy(&o.stderr));
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert!(text.contains("relief from") && text.contains(sampler), "{text}");
+        if sampler != "trilinear" {
+            assert!(text.contains("bank conflicts: 0 in"), "{sampler}: {text}");
+        }
+        assert!(frames.join("frame-0001.png").exists());
+    }
+    // the camera below the (exaggerated) relief, and relief asked of a store without a DEM
+    let o = hitex(&[
+        "terrain",
+        "fly",
+        s,
+        "--frames",
+        "1",
+        "--altitude",
+        "1",
+        "--exaggeration",
+        "50",
+        "-o",
+        d.join("x").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("below the ground"), "{}", String::from_utf8_lossy(&o.stderr));
+    let flat = d.join("flat");
+    let o = hitex(&["terrain", "build", "--procedural", "300x300", "-o", flat.to_str().unwrap()]);
+    assert!(o.status.success());
+    let o =
+        hitex(&["terrain", "fly", flat.to_str().unwrap(), "--ground", "relief", "-o", d.join("y").to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("holds no DEM"), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// A 3-band 8-bit GeoTIFF of `side`² pixels in strips, UTM 25S.
+fn write_geotiff(path: &std::path::Path, side: u32) {
+    use tiff::encoder::{TiffEncoder, colortype::RGB8};
+    use tiff::tags::Tag;
+    let data: Vec<u8> = (0..side * side)
+        .flat_map(|i| {
+            let (x, y) = (i % side, i / side);
+            [(x ^ y) as u8, (x / 8) as u8, (y / 8) as u8]
+        })
+        .collect();
+    let mut enc = TiffEncoder::new(std::fs::File::create(path).unwrap()).unwrap();
+    let mut img = enc.new_image::<RGB8>(side, side).unwrap();
+    img.encoder().write_tag(Tag::ModelPixelScaleTag, &[30.0f64, 30.0, 0.0][..]).unwrap();
+    img.encoder().write_tag(Tag::ModelTiepointTag, &[0.0f64, 0.0, 0.0, 290_000.0, 9_120_000.0, 0.0][..]).unwrap();
+    img.encoder().write_tag(Tag::GeoKeyDirectoryTag, &[1u16, 1, 0, 1, 3072, 0, 1, 31985][..]).unwrap();
+    img.write_data(&data).unwrap();
+}
+
+#[test]
+fn a_geotiff_larger_than_the_memory_cap_builds_by_windows() {
+    let d = tmp("store-windows");
+    let big = d.join("big.tif");
+    write_geotiff(&big, 2048); // 12 MiB of samples, 48 MiB as f32
+    let b = big.to_str().unwrap();
+    // read whole, the raster is refused under an 8 MiB cap ...
+    let o = hitex(&["--max-memory", "8M", "terrain", "render", "--dem", b, "-o", d.join("r.png").to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("memory"), "{}", String::from_utf8_lossy(&o.stderr));
+    // ... while the pyramid is built window by window under the same cap
+    let store = d.join("store");
+    let o = hitex(&["--max-memory", "8M", "terrain", "build", "--image", b, "-o", store.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // 8×8 maps at the finest level; a map's texels are the stretched source's
+    assert!(store.join("3/7/0.png").exists() && store.join("0/0/0.png").exists());
+    let t = image::open(store.join("3/0/7.png")).unwrap().to_rgba8();
+    assert_eq!((t.width(), t.height()), (256, 256));
+    // band 3 (y / 8) rises southwards: the map's rows do too
+    assert!(t.get_pixel(0, 200)[0] > t.get_pixel(0, 10)[0], "{:?} {:?}", t.get_pixel(0, 200), t.get_pixel(0, 10));
+}

@@ -98,6 +98,147 @@ pub fn grid_mesh(
     Mesh::new("terrain", p, None, Some(t), idx)
 }
 
+/// A DEM mesh whose resolution follows the distance to the eye.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LodMesh {
+    /// Positions (map x, map y, height), in the units of the map transform.
+    pub positions: Vec<[f32; 3]>,
+    /// Map position of each vertex (x, y).
+    pub tex: Vec<[f32; 2]>,
+    /// Triangle indices.
+    pub indices: Vec<u32>,
+    /// Blocks drawn at each post step (index k: step 2^k).
+    pub blocks_per_step: Vec<u32>,
+}
+
+/// How [`lod_mesh`] places a DEM grid and chooses its detail.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LodOptions {
+    /// Map position of post (0, 0) and the map step between posts (x, y).
+    pub origin: [f64; 2],
+    /// Map units between posts.
+    pub spacing: [f64; 2],
+    /// Map units per height unit (e.g. texels per metre × exaggeration).
+    pub height_scale: f64,
+    /// Eye position in map units (x, y, height).
+    pub eye: [f64; 3],
+    /// Pixels per unit of tan(angle) of the camera (`k` of eq. (6)).
+    pub pixels_per_tan: f64,
+    /// Largest projected edge of a cell, pixels.
+    pub max_edge_px: f64,
+    /// Cells per block side (a power of two).
+    pub block: usize,
+}
+
+/// Geomipmapping: the grid is cut into blocks of `block`×`block` cells; each
+/// block takes the largest power-of-two post step whose cells project to at
+/// most `max_edge_px` pixels at the block's nearest distance to the eye, and
+/// skirts hang from its edges (down to below the block's lowest post) so that
+/// neighbours of different steps leave no crack. The triangle count follows
+/// the view, not the DEM's size.
+pub fn lod_mesh(heights: &[f32], w: usize, h: usize, o: &LodOptions) -> Result<LodMesh, CoreError> {
+    let bad = |message: String| CoreError::InvalidMesh { name: "terrain".into(), message };
+    if w < 2 || h < 2 || heights.len() != w * h {
+        return Err(bad(format!("{w}×{h} posts with {} heights", heights.len())));
+    }
+    if !o.block.is_power_of_two() || o.block < 2 {
+        return Err(bad(format!("block of {} cells is not a power of two ≥ 2", o.block)));
+    }
+    let finite = [o.origin[0], o.origin[1], o.spacing[0], o.spacing[1], o.height_scale, o.eye[0], o.eye[1], o.eye[2]];
+    if finite.iter().any(|v| !v.is_finite()) || o.spacing[0] <= 0.0 || o.spacing[1] <= 0.0 {
+        return Err(bad("the grid placement is not finite and positive".into()));
+    }
+    let height = |i: usize, j: usize| {
+        let v = heights[j.min(h - 1) * w + i.min(w - 1)];
+        if v.is_finite() { v as f64 } else { 0.0 }
+    };
+    let post = |i: usize, j: usize| {
+        [o.origin[0] + i as f64 * o.spacing[0], o.origin[1] + j as f64 * o.spacing[1], height(i, j) * o.height_scale]
+    };
+    let cell = o.spacing[0].max(o.spacing[1]);
+    let max_step = o.block.trailing_zeros() as usize;
+    let mut m = LodMesh { blocks_per_step: vec![0; max_step + 1], ..Default::default() };
+    let (bw, bh) = ((w - 1).div_ceil(o.block), (h - 1).div_ceil(o.block));
+    for bj in 0..bh {
+        for bi in 0..bw {
+            let (i0, j0) = (bi * o.block, bj * o.block);
+            let (i1, j1) = ((i0 + o.block).min(w - 1), (j0 + o.block).min(h - 1));
+            // nearest distance from the eye to the block's box
+            let (a, b) = (post(i0, j0), post(i1, j1));
+            let (mut lo_z, mut hi_z) = (f64::INFINITY, f64::NEG_INFINITY);
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    let z = height(i, j) * o.height_scale;
+                    lo_z = lo_z.min(z);
+                    hi_z = hi_z.max(z);
+                }
+            }
+            let gap = |v: f64, p: f64, q: f64| {
+                if v < p.min(q) {
+                    p.min(q) - v
+                } else if v > p.max(q) {
+                    v - p.max(q)
+                } else {
+                    0.0
+                }
+            };
+            let d = (gap(o.eye[0], a[0], b[0]).powi(2)
+                + gap(o.eye[1], a[1], b[1]).powi(2)
+                + gap(o.eye[2], lo_z, hi_z).powi(2))
+            .sqrt()
+            .max(cell);
+            // a cell of step s spans s·cell map units, ≈ s·cell·k/d pixels
+            let allowed = o.max_edge_px * d / (cell * o.pixels_per_tan.max(1e-9));
+            let k = if allowed >= 1.0 { (allowed.log2().floor() as usize).min(max_step) } else { 0 };
+            let step = 1usize << k;
+            m.blocks_per_step[k] += 1;
+            // posts of the block at this step (the last row/column always included)
+            let ticks = |lo: usize, hi: usize| {
+                let mut t: Vec<usize> = (lo..hi).step_by(step).collect();
+                t.push(hi);
+                t
+            };
+            let (xs, ys) = (ticks(i0, i1), ticks(j0, j1));
+            let base = m.positions.len() as u32;
+            for &j in &ys {
+                for &i in &xs {
+                    let p = post(i, j);
+                    m.positions.push([p[0] as f32, p[1] as f32, p[2] as f32]);
+                    m.tex.push([p[0] as f32, p[1] as f32]);
+                }
+            }
+            let nx = xs.len() as u32;
+            for r in 0..ys.len() as u32 - 1 {
+                for c in 0..nx - 1 {
+                    let v = base + r * nx + c;
+                    m.indices.extend_from_slice(&[v, v + nx, v + 1, v + 1, v + nx, v + nx + 1]);
+                }
+            }
+            // skirts along the four edges, down to below the block's lowest post
+            let drop = (lo_z - (hi_z - lo_z).max(cell * step as f64)) as f32;
+            let edges: [Vec<u32>; 4] = [
+                (0..nx).map(|c| base + c).collect(),
+                (0..ys.len() as u32).map(|r| base + r * nx + nx - 1).collect(),
+                (0..nx).rev().map(|c| base + (ys.len() as u32 - 1) * nx + c).collect(),
+                (0..ys.len() as u32).rev().map(|r| base + r * nx).collect(),
+            ];
+            for e in edges {
+                for pair in e.windows(2) {
+                    let (t0, t1) = (pair[0] as usize, pair[1] as usize);
+                    let s0 = m.positions.len() as u32;
+                    for t in [t0, t1] {
+                        let p = m.positions[t];
+                        m.positions.push([p[0], p[1], drop]);
+                        m.tex.push(m.tex[t]);
+                    }
+                    m.indices.extend_from_slice(&[pair[0], s0, pair[1], pair[1], s0, s0 + 1]);
+                }
+            }
+        }
+    }
+    Ok(m)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -142,5 +283,52 @@ mod tests {
         assert_eq!(m.triangle_count(), 4);
         assert!(m.normals.iter().all(|n| n.y > 0.0));
         assert!(grid_mesh(&[0.0; 3], 3, 2, [1.0, 1.0], 1.0, |_, _| Vec2::ZERO).is_err());
+    }
+
+    fn lod_options(eye: [f64; 3]) -> LodOptions {
+        LodOptions {
+            origin: [0.0, 0.0],
+            spacing: [4.0, 4.0],
+            height_scale: 1.0,
+            eye,
+            pixels_per_tan: 1024.0 / (2.0 * (22.5f64).to_radians().tan()),
+            max_edge_px: 8.0,
+            block: 16,
+        }
+    }
+
+    #[test]
+    fn lod_follows_the_distance_not_the_grid() {
+        let (w, h) = (257, 257);
+        let heights: Vec<f32> = (0..w * h).map(|i| ((i % w) as f32 * 0.1).sin() * 5.0).collect();
+        let near = lod_mesh(&heights, w, h, &lod_options([512.0, 512.0, 50.0])).unwrap();
+        let far = lod_mesh(&heights, w, h, &lod_options([512.0, 512.0, 50_000.0])).unwrap();
+        // near the eye the finest step is used, far away the coarsest
+        assert!(near.blocks_per_step[0] > 0, "{:?}", near.blocks_per_step);
+        assert_eq!(far.blocks_per_step[4], 256, "{:?}", far.blocks_per_step);
+        assert!(far.indices.len() * 20 < near.indices.len(), "{} vs {}", far.indices.len(), near.indices.len());
+        // every index is in range and every vertex finite
+        for m in [&near, &far] {
+            assert!(m.indices.iter().all(|&i| (i as usize) < m.positions.len()));
+            assert!(m.positions.iter().flatten().all(|v| v.is_finite()));
+            assert_eq!(m.positions.len(), m.tex.len());
+        }
+    }
+
+    #[test]
+    fn lod_posts_sit_on_the_grid_and_skirts_hang_below() {
+        let (w, h) = (33, 17);
+        let heights: Vec<f32> = (0..w * h).map(|i| (i / w) as f32).collect();
+        let m = lod_mesh(&heights, w, h, &lod_options([0.0, 0.0, 1.0e6])).unwrap();
+        for p in &m.positions {
+            let (i, j) = (p[0] / 4.0, p[1] / 4.0);
+            assert_eq!(i.fract(), 0.0);
+            assert_eq!(j.fract(), 0.0);
+            // a post at its height, or a skirt vertex below every post of the grid's rows it spans
+            assert!(p[2] == j || p[2] < j - 0.5, "{p:?}");
+        }
+        assert!(lod_mesh(&heights, w, h, &LodOptions { block: 3, ..lod_options([0.0; 3]) }).is_err());
+        assert!(lod_mesh(&heights[1..], w, h, &lod_options([0.0; 3])).is_err());
+        assert!(lod_mesh(&heights, w, h, &LodOptions { spacing: [f64::NAN, 1.0], ..lod_options([0.0; 3]) }).is_err());
     }
 }

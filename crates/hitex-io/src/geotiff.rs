@@ -96,16 +96,20 @@ pub fn load_geotiff(path: &Path) -> Result<GeoRaster, IoError> {
     parse_geotiff(std::io::BufReader::new(file), len, path)
 }
 
-/// Reads a GeoTIFF of `len` bytes from `reader`; `path` is the file named in
-/// errors. The declared raster is checked against [`MAX_SAMPLES`], against
-/// what `len` bytes can hold and against the memory cap before it is decoded.
-pub fn parse_geotiff<R: Read + Seek>(reader: R, len: u64, path: &Path) -> Result<GeoRaster, IoError> {
+fn open_decoder<R: Read + Seek>(reader: R, path: &Path) -> Result<Decoder<R>, IoError> {
     let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
     let mut limits = tiff::decoder::Limits::default();
     let cap = usize::try_from(crate::limits::max_bytes()).unwrap_or(usize::MAX);
     limits.decoding_buffer_size = cap;
     limits.intermediate_buffer_size = cap.min(1 << 30);
-    let mut d = Decoder::new(reader).map_err(|e| fmt(format!("not a TIFF file: {e}")))?.with_limits(limits);
+    Ok(Decoder::new(reader).map_err(|e| fmt(format!("not a TIFF file: {e}")))?.with_limits(limits))
+}
+
+/// The raster's size, band layout and georeferencing (no samples); checks
+/// the declared size against the file's `len` bytes, and, when `whole`, the
+/// decoded raster against the memory cap.
+fn read_header<R: Read + Seek>(d: &mut Decoder<R>, len: u64, path: &Path, whole: bool) -> Result<GeoRaster, IoError> {
+    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
     let (w, h) = d.dimensions().map_err(|e| fmt(e.to_string()))?;
     let (bands, bits) = match d.colortype().map_err(|e| fmt(e.to_string()))? {
         tiff::ColorType::Gray(b) => (1, b),
@@ -121,8 +125,13 @@ pub fn parse_geotiff<R: Read + Seek>(reader: R, len: u64, path: &Path) -> Result
     }
     let what = format!("a {w}×{h} raster of {bands} band{}", if bands == 1 { "" } else { "s" });
     let raw = samples * (bits as u64).div_ceil(8).max(1);
-    crate::limits::check_claim(&what, Some(raw), len, crate::limits::ANY_RATIO).map_err(fmt)?;
-    crate::limits::check_cap(&what, Some(raw + samples * 4)).map_err(fmt)?;
+    if whole {
+        crate::limits::check_claim(&what, Some(raw), len, crate::limits::ANY_RATIO).map_err(fmt)?;
+        crate::limits::check_cap(&what, Some(raw + samples * 4)).map_err(fmt)?;
+    } else {
+        // read by windows: only the claim against the file's bytes matters
+        crate::limits::check_backing(&what, Some(raw), len, crate::limits::ANY_RATIO).map_err(fmt)?;
+    }
     let tie =
         d.get_tag_f64_vec(Tag::ModelTiepointTag).map_err(|_| fmt("no ModelTiepoint tag: not georeferenced".into()))?;
     let scale = d
@@ -145,7 +154,38 @@ pub fn parse_geotiff<R: Read + Seek>(reader: R, len: u64, path: &Path) -> Result
     let (epsg, projection) = (key(3072), key(3074));
     let citation =
         d.get_tag_ascii_string(Tag::Unknown(34737)).ok().map(|s| s.trim_end_matches(['|', '\0']).to_string());
-    let data: Vec<f32> = match d.read_image().map_err(|e| fmt(format!("cannot decode the samples: {e}")))? {
+    Ok(GeoRaster {
+        width: w,
+        height: h,
+        bands,
+        data: Vec::new(),
+        origin,
+        pixel: [scale[0], scale[1]],
+        nodata,
+        epsg,
+        projection,
+        citation,
+    })
+}
+
+/// Reads a GeoTIFF of `len` bytes from `reader`; `path` is the file named in
+/// errors. The declared raster is checked against [`MAX_SAMPLES`], against
+/// what `len` bytes can hold and against the memory cap before it is decoded.
+pub fn parse_geotiff<R: Read + Seek>(reader: R, len: u64, path: &Path) -> Result<GeoRaster, IoError> {
+    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+    let mut d = open_decoder(reader, path)?;
+    let mut r = read_header(&mut d, len, path, true)?;
+    let samples = r.width as u64 * r.height as u64 * r.bands as u64;
+    let data = to_f32(d.read_image().map_err(|e| fmt(format!("cannot decode the samples: {e}")))?).map_err(fmt)?;
+    if data.len() as u64 != samples {
+        return Err(fmt(format!("{} samples decoded, {samples} declared", data.len())));
+    }
+    r.data = data;
+    Ok(r)
+}
+
+fn to_f32(r: DecodingResult) -> Result<Vec<f32>, String> {
+    Ok(match r {
         DecodingResult::U8(v) => v.into_iter().map(f32::from).collect(),
         DecodingResult::U16(v) => v.into_iter().map(f32::from).collect(),
         DecodingResult::I8(v) => v.into_iter().map(f32::from).collect(),
@@ -154,23 +194,137 @@ pub fn parse_geotiff<R: Read + Seek>(reader: R, len: u64, path: &Path) -> Result
         DecodingResult::U32(v) => v.into_iter().map(|x| x as f32).collect(),
         DecodingResult::F32(v) => v,
         DecodingResult::F64(v) => v.into_iter().map(|x| x as f32).collect(),
-        _ => return Err(fmt("unsupported sample format".into())),
-    };
-    if data.len() as u64 != samples {
-        return Err(fmt(format!("{} samples decoded, {samples} declared", data.len())));
-    }
-    Ok(GeoRaster {
-        width: w,
-        height: h,
-        bands,
-        data,
-        origin,
-        pixel: [scale[0], scale[1]],
-        nodata,
-        epsg,
-        projection,
-        citation,
+        _ => return Err("unsupported sample format".into()),
     })
+}
+
+/// A GeoTIFF read by windows: only the strips or tiles a window touches are
+/// decoded (a few are kept, within [`GeoTiffWindows::CACHE_BYTES`]), so
+/// sources far larger than memory can be processed.
+pub struct GeoTiffWindows {
+    /// Size, bands and georeferencing (`data` is empty).
+    pub header: GeoRaster,
+    path: std::path::PathBuf,
+    decoder: std::sync::Mutex<Decoder<std::io::BufReader<std::fs::File>>>,
+    /// Chunk (strip or tile) width and height.
+    chunk: (u32, u32),
+    across: u32,
+    cache: std::sync::Mutex<std::collections::VecDeque<(u32, std::sync::Arc<Vec<f32>>)>>,
+}
+
+impl GeoTiffWindows {
+    /// Decoded chunks kept for reuse, bytes.
+    pub const CACHE_BYTES: usize = 64 << 20;
+
+    /// Opens `path`: reads the header and georeferencing only.
+    pub fn open(path: &Path) -> Result<Self, IoError> {
+        let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+        let file = std::fs::File::open(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
+        let len = file.metadata().map_err(|source| IoError::Read { path: path.to_path_buf(), source })?.len();
+        let mut d = open_decoder(std::io::BufReader::new(file), path)?;
+        let header = read_header(&mut d, len, path, false)?;
+        let planar = d.get_tag_u32(Tag::PlanarConfiguration).unwrap_or(1);
+        if planar != 1 {
+            return Err(fmt("bands stored as separate planes: windowed reading needs interleaved bands".into()));
+        }
+        let chunk = d.chunk_dimensions();
+        if chunk.0 == 0 || chunk.1 == 0 {
+            return Err(fmt(format!("chunks of {}×{} pixels", chunk.0, chunk.1)));
+        }
+        let chunk_bytes = chunk.0 as usize * chunk.1 as usize * header.bands * 4;
+        if chunk_bytes > Self::CACHE_BYTES {
+            return Err(fmt(format!(
+                "strips or tiles of {}×{} pixels are too large to read by windows",
+                chunk.0, chunk.1
+            )));
+        }
+        let across = header.width.div_ceil(chunk.0);
+        Ok(Self {
+            header,
+            path: path.to_path_buf(),
+            decoder: std::sync::Mutex::new(d),
+            chunk,
+            across,
+            cache: std::sync::Mutex::new(std::collections::VecDeque::new()),
+        })
+    }
+
+    /// Samples of chunk `i` (its data part: `chunk_data_dimensions`), bands interleaved.
+    fn chunk(&self, i: u32) -> Result<std::sync::Arc<Vec<f32>>, IoError> {
+        let fmt = |m: String| IoError::Format { path: self.path.clone(), message: m };
+        if let Ok(c) = self.cache.lock()
+            && let Some((_, v)) = c.iter().find(|(k, _)| *k == i)
+        {
+            return Ok(v.clone());
+        }
+        let (v, dims) = {
+            let mut d = self.decoder.lock().map_err(|_| fmt("the decoder failed earlier".into()))?;
+            let r = d.read_chunk(i).map_err(|e| fmt(format!("strip or tile {i}: {e}")))?;
+            (to_f32(r).map_err(fmt)?, d.chunk_data_dimensions(i))
+        };
+        if v.len() < dims.0 as usize * dims.1 as usize * self.header.bands {
+            return Err(fmt(format!("strip or tile {i}: {} samples, {}×{} pixels declared", v.len(), dims.0, dims.1)));
+        }
+        let v = std::sync::Arc::new(v);
+        if let Ok(mut c) = self.cache.lock() {
+            let per = (self.chunk.0 as usize * self.chunk.1 as usize * self.header.bands * 4).max(1);
+            while !c.is_empty() && (c.len() + 1) * per > Self::CACHE_BYTES {
+                c.pop_front();
+            }
+            c.push_back((i, v.clone()));
+        }
+        Ok(v)
+    }
+
+    /// Samples of the window at (x0, y0) of `w`×`h` pixels (inside the
+    /// raster), bands interleaved, rows north to south.
+    pub fn window(&self, x0: u32, y0: u32, w: u32, h: u32) -> Result<Vec<f32>, IoError> {
+        let r = &self.header;
+        if x0.checked_add(w).is_none_or(|x| x > r.width) || y0.checked_add(h).is_none_or(|y| y > r.height) {
+            return Err(IoError::Format {
+                path: self.path.clone(),
+                message: format!("window {w}×{h} at ({x0}, {y0}) outside the {}×{} raster", r.width, r.height),
+            });
+        }
+        let b = r.bands;
+        let mut out = vec![0.0f32; w as usize * h as usize * b];
+        let (cw, ch) = self.chunk;
+        for cy in y0 / ch..(y0 + h).div_ceil(ch) {
+            for cx in x0 / cw..(x0 + w).div_ceil(cw) {
+                let data = self.chunk(cy * self.across + cx)?;
+                // the chunk's data width: tiles are padded, the last strip is shorter
+                let dw = cw.min(r.width - cx * cw) as usize;
+                let (ox, oy) = (cx * cw, cy * ch);
+                let (xa, xb) = (x0.max(ox), (x0 + w).min(ox + cw));
+                let stride = if data.len() >= cw as usize * ch as usize * b { cw as usize } else { dw };
+                for y in y0.max(oy)..(y0 + h).min(oy + ch) {
+                    let src = ((y - oy) as usize * stride + (xa - ox) as usize) * b;
+                    let dst = ((y - y0) as usize * w as usize + (xa - x0) as usize) * b;
+                    let n = (xb - xa) as usize * b;
+                    let Some(s) = data.get(src..src + n) else {
+                        return Err(IoError::Format {
+                            path: self.path.clone(),
+                            message: format!("strip or tile at ({cx}, {cy}) is short"),
+                        });
+                    };
+                    out[dst..dst + n].copy_from_slice(s);
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// The 2nd and 98th percentile of a band's finite samples (the contrast
+/// stretch of imagery), from at most `1 << 20` samples taken evenly.
+pub fn stretch_range(samples: impl Iterator<Item = f32>) -> Option<(f32, f32)> {
+    let mut v: Vec<f32> = samples.filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    let (lo, hi) = (v[v.len() * 2 / 100], v[(v.len() * 98 / 100).min(v.len() - 1)]);
+    Some((lo, if hi > lo { hi } else { lo + 1.0 }))
 }
 
 /// Replaces nodata and non-finite samples of band 0 by the mean of their
@@ -271,5 +425,39 @@ mod tests {
         crate::save_png(&png, 2, 2, &[0; 16]).unwrap();
         assert!(load_geotiff(&png).is_err());
         assert!(load_geotiff(&dir.join("missing.tif")).is_err());
+    }
+
+    #[test]
+    fn windows_read_what_the_whole_file_holds() {
+        let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/data/olinda/L7_ETMs.tif"));
+        let whole = load_geotiff(path).unwrap();
+        let win = GeoTiffWindows::open(path).unwrap();
+        assert_eq!((win.header.width, win.header.height, win.header.bands), (whole.width, whole.height, whole.bands));
+        assert_eq!(win.header.origin, whole.origin);
+        let (w, h, b) = (whole.width, whole.height, whole.bands);
+        for (x0, y0, ww, hh) in
+            [(0, 0, w, h), (0, 0, 1, 1), (w - 1, h - 1, 1, 1), (17, 100, 256, 200), (300, 3, 49, 349)]
+        {
+            let got = win.window(x0, y0, ww, hh).unwrap();
+            for y in 0..hh {
+                for x in 0..ww {
+                    for k in 0..b {
+                        let i = ((y * ww + x) as usize) * b + k;
+                        assert_eq!(
+                            got[i],
+                            whole.get(x0 + x, y0 + y, k),
+                            "window ({x0},{y0}) {ww}×{hh} at ({x},{y}) band {k}"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(win.window(w - 1, 0, 2, 1).is_err());
+        assert!(win.window(0, u32::MAX, 1, 2).is_err());
+        // 2nd and 98th percentiles; non-finite samples ignored; a flat band still spans 1
+        let ramp = (0..100).map(|i| i as f32).chain([f32::NAN, f32::INFINITY]);
+        assert_eq!(stretch_range(ramp), Some((2.0, 98.0)));
+        assert_eq!(stretch_range([5.0f32; 10].into_iter()), Some((5.0, 6.0)));
+        assert_eq!(stretch_range([f32::NAN].into_iter()), None);
     }
 }

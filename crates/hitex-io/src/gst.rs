@@ -15,6 +15,7 @@
 //! a temporary name and renamed.
 
 use crate::IoError;
+use crate::geotiff::GeoTiffWindows;
 use crate::image_io::write_atomic;
 use hitex_core::splitmix64 as hash;
 use hitex_core::texture::image::decode_table;
@@ -120,6 +121,85 @@ impl TileSource for ProceduralSource {
     }
     fn describe(&self) -> String {
         format!("procedural imagery, {}x{} texels generated on the fly", self.width, self.height)
+    }
+}
+
+/// Imagery from a GeoTIFF read by windows ([`GeoTiffWindows`]): three bands
+/// contrast-stretched to RGB, with memory bounded by the windows and the
+/// decoder's chunk cache, whatever the file's size.
+pub struct GeoTiffSource {
+    /// The file.
+    pub tiff: GeoTiffWindows,
+    /// Bands as red, green, blue (0-based).
+    pub bands: [usize; 3],
+    /// Per output channel, the sample range stretched to 0..255.
+    pub range: [(f32, f32); 3],
+    /// What it is.
+    pub name: String,
+}
+
+/// Samples per band the stretch looks at, at most.
+pub const STRETCH_SAMPLES: u64 = 1 << 20;
+
+impl GeoTiffSource {
+    /// Opens the bands of `tiff`, measuring each band's 2–98 % range from
+    /// an even lattice of at most [`STRETCH_SAMPLES`] pixels (all of them
+    /// below that), read window by window.
+    pub fn new(tiff: GeoTiffWindows, bands: [usize; 3], name: String) -> Result<Self, IoError> {
+        let r = &tiff.header;
+        let fmt = |m: String| IoError::Format { path: name.clone().into(), message: m };
+        if let Some(&b) = bands.iter().find(|&&b| b >= r.bands) {
+            return Err(fmt(format!("band {} requested of {}", b + 1, r.bands)));
+        }
+        let pixels = r.width as u64 * r.height as u64;
+        let step = pixels.div_ceil(STRETCH_SAMPLES).max(1);
+        let mut picked: [Vec<f32>; 3] = Default::default();
+        let win = 1024u32;
+        for y0 in (0..r.height).step_by(win as usize) {
+            for x0 in (0..r.width).step_by(win as usize) {
+                let (w, h) = (win.min(r.width - x0), win.min(r.height - y0));
+                let data = tiff.window(x0, y0, w, h)?;
+                for y in 0..h {
+                    for x in 0..w {
+                        let g = (y0 + y) as u64 * r.width as u64 + (x0 + x) as u64;
+                        if g.is_multiple_of(step) {
+                            let o = (y as usize * w as usize + x as usize) * r.bands;
+                            for (k, &b) in bands.iter().enumerate() {
+                                picked[k].push(data[o + b]);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let mut range = [(0.0, 1.0); 3];
+        for k in 0..3 {
+            range[k] = crate::geotiff::stretch_range(std::mem::take(&mut picked[k]).into_iter())
+                .ok_or_else(|| fmt(format!("band {} has no finite samples", bands[k] + 1)))?;
+        }
+        Ok(Self { tiff, bands, range, name })
+    }
+}
+
+impl TileSource for GeoTiffSource {
+    fn size(&self) -> (u32, u32) {
+        (self.tiff.header.width, self.tiff.header.height)
+    }
+    fn read(&self, x0: u32, y0: u32, w: u32, h: u32) -> Result<Vec<u8>, IoError> {
+        let b = self.tiff.header.bands;
+        let data = self.tiff.window(x0, y0, w, h)?;
+        let mut out = Vec::with_capacity(w as usize * h as usize * 4);
+        for px in data.chunks_exact(b) {
+            for k in 0..3 {
+                let (lo, hi) = self.range[k];
+                out.push(((px[self.bands[k]] - lo) / (hi - lo) * 255.0).clamp(0.0, 255.0) as u8);
+            }
+            out.push(255);
+        }
+        Ok(out)
+    }
+    fn describe(&self) -> String {
+        self.name.clone()
     }
 }
 

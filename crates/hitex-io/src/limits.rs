@@ -107,7 +107,14 @@ pub fn check_cap(what: &str, claimed: Option<u64>) -> Result<u64, String> {
 /// from `available` bytes of input that expands at most `ratio` times, and
 /// against the cap.
 pub fn check_claim(what: &str, claimed: Option<u64>, available: u64, ratio: u64) -> Result<u64, String> {
-    let c = check_cap(what, claimed)?;
+    check_cap(what, claimed)?;
+    check_backing(what, claimed, available, ratio)
+}
+
+/// Checks a claim against the data that backs it only (for data read in
+/// bounded pieces, where the whole is never held).
+pub fn check_backing(what: &str, claimed: Option<u64>, available: u64, ratio: u64) -> Result<u64, String> {
+    let Some(c) = claimed else { return Err(format!("{what} claims more than 2^64 bytes")) };
     // a small constant allows for headers and tables that expand more
     let bound = available.saturating_mul(ratio).saturating_add(1 << 16);
     if c > bound {

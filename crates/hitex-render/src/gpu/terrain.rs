@@ -1,12 +1,17 @@
 //! The flight pipeline: resident maps in one 2-D array texture (a layer per
 //! map, uploaded once while it stays resident), the frame's page table in a
-//! storage buffer, `shaders/terrain.wgsl` over a full-screen triangle.
+//! storage buffer, `shaders/terrain.wgsl` over a full-screen triangle (flat
+//! ground) or over the flight mesh (the DEM and objects, then the sky where
+//! nothing was drawn). The generic texture's levels are layers of the same
+//! array, kept for as long as the texture does not change.
 
 use super::{GpuError, GpuRenderer, trusted_module};
-use crate::terrain::{FlyPages, FlyUniform, MAP};
+use crate::terrain::{FlyGround, FlyPages, FlyUniform, FlyVertex, GenericTexture, MAP};
 use crate::{Frame, RenderError};
 use hitex_core::residency::MapKey;
 use std::collections::HashMap;
+use std::sync::Arc;
+use wgpu::util::DeviceExt;
 
 /// The flight shader source.
 pub const TERRAIN_WGSL: &str = include_str!("../../shaders/terrain.wgsl");
@@ -16,6 +21,10 @@ const MAX_LEVELS: u32 = 32;
 
 pub(crate) struct FlyGpu {
     pipeline: wgpu::RenderPipeline,
+    mesh_pipeline: wgpu::RenderPipeline,
+    sky_pipeline: wgpu::RenderPipeline,
+    /// The generic texture the Generic layers hold.
+    generic: Option<Arc<Vec<u8>>>,
     layout: wgpu::BindGroupLayout,
     uniform: wgpu::Buffer,
     pages: Option<wgpu::Buffer>,
@@ -36,7 +45,7 @@ impl FlyGpu {
         let module = unsafe { trusted_module(device, "terrain.wgsl", TERRAIN_WGSL) };
         let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
             binding,
-            visibility: wgpu::ShaderStages::FRAGMENT,
+            visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
             ty,
             count: None,
         };
@@ -74,38 +83,55 @@ impl FlyGpu {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("fly"),
-            layout: Some(&pl),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState::default(),
-            // the pass has a depth target; the full-screen triangle ignores it
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: wgpu::TextureFormat::Depth32Float,
-                depth_write_enabled: Some(false),
-                depth_compare: Some(wgpu::CompareFunction::Always),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: wgpu::TextureFormat::Rgba8Unorm,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let vertex_layout = wgpu::VertexBufferLayout {
+            array_stride: std::mem::size_of::<FlyVertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x2, 2 => Float32, 3 => Float32],
+        };
+        let make = |label: &str,
+                    vs: &str,
+                    fs: &str,
+                    buffers: &[Option<wgpu::VertexBufferLayout>],
+                    depth: wgpu::DepthStencilState| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&pl),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some(vs),
+                    compilation_options: Default::default(),
+                    buffers,
+                },
+                primitive: wgpu::PrimitiveState::default(),
+                depth_stencil: Some(depth),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some(fs),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: wgpu::TextureFormat::Rgba8Unorm,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let depth = |write: bool, compare| wgpu::DepthStencilState {
+            format: wgpu::TextureFormat::Depth32Float,
+            depth_write_enabled: Some(write),
+            depth_compare: Some(compare),
+            stencil: Default::default(),
+            bias: Default::default(),
+        };
+        // the full-screen triangle ignores depth; the mesh tests and writes it;
+        // the sky fills what is still at the far plane
+        let pipeline = make("fly", "vs_main", "fs_main", &[], depth(false, wgpu::CompareFunction::Always));
+        let mesh_pipeline =
+            make("fly mesh", "vs_mesh", "fs_mesh", &[Some(vertex_layout)], depth(true, wgpu::CompareFunction::Less));
+        let sky_pipeline = make("fly sky", "vs_sky", "fs_sky", &[], depth(false, wgpu::CompareFunction::LessEqual));
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(GpuError::Device(format!("flight pipeline creation failed: {e}")));
         }
@@ -115,26 +141,45 @@ impl FlyGpu {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        Ok(Self { pipeline, layout, uniform, pages: None, maps: None, capacity: 0, layers: HashMap::new(), frame: 0 })
+        Ok(Self {
+            pipeline,
+            mesh_pipeline,
+            sky_pipeline,
+            generic: None,
+            layout,
+            uniform,
+            pages: None,
+            maps: None,
+            capacity: 0,
+            layers: HashMap::new(),
+            frame: 0,
+        })
     }
 
     /// Gives every map of `pages` a layer (uploading the new ones, reusing
-    /// the layers of maps this frame does not use) and returns the table.
+    /// the layers of maps this frame does not use) and the generic texture
+    /// its levels in the array's last layers; returns the table and the
+    /// generic texture's first layer.
     fn sync(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         pages: &FlyPages,
-    ) -> Result<Vec<[i32; 2]>, GpuError> {
+        generic: Option<&GenericTexture>,
+    ) -> Result<(Vec<[i32; 2]>, u32), GpuError> {
         self.frame += 1;
-        let need = pages.maps.len() as u32;
+        let glevels = generic.map_or(0, |g| g.levels.len() as u32);
+        let need = pages.maps.len() as u32 + glevels;
         let max = device.limits().max_texture_array_layers;
         if need > max {
             return Err(GpuError::Render(format!("{need} resident maps in one frame; the adapter holds {max} layers")));
         }
-        if self.maps.is_none() || need > self.capacity {
-            // room for this frame's maps and as many again
-            self.capacity = (need * 2).clamp(64, max);
+        let fresh = self.maps.is_none() || need > self.capacity;
+        if fresh {
+            // room for this frame's maps and as many again, in a power of two
+            // of layers: lavapipe read wrong layers of a 114-layer array
+            // (measured; 64 and 128 layers read right)
+            self.capacity = (need * 2).next_power_of_two().clamp(64, max);
             self.maps = Some(device.create_texture(&wgpu::TextureDescriptor {
                 label: Some("resident maps"),
                 size: wgpu::Extent3d { width: MAP, height: MAP, depth_or_array_layers: self.capacity },
@@ -146,10 +191,41 @@ impl FlyGpu {
                 view_formats: &[],
             }));
             self.layers.clear();
+            self.generic = None;
         }
         let Some(tex) = self.maps.as_ref() else {
             return Err(GpuError::Render("map array missing".into()));
         };
+        let upload = |layer: u32, texels: &[u8]| {
+            queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: tex,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d { x: 0, y: 0, z: layer },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                texels,
+                wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(MAP * 4), rows_per_image: Some(MAP) },
+                wgpu::Extent3d { width: MAP, height: MAP, depth_or_array_layers: 1 },
+            );
+        };
+        // the generic texture: the last layers, uploaded when it changes
+        let first_generic = self.capacity - glevels;
+        if let Some(g) = generic {
+            let same = matches!((g.levels.first(), &self.generic), (Some(l), Some(k)) if Arc::ptr_eq(l, k));
+            if !same {
+                if g.levels.iter().any(|l| l.len() != (MAP * MAP * 4) as usize) {
+                    return Err(GpuError::Render("a generic texture level is not a full map".into()));
+                }
+                // maps living in those layers move out
+                self.layers.retain(|_, v| v.0 < first_generic);
+                for (i, t) in g.levels.iter().enumerate() {
+                    upload(first_generic + i as u32, t);
+                }
+                self.generic = g.levels.first().cloned();
+            }
+        }
+        let pool = first_generic;
         for k in pages.maps.keys() {
             if let Some(l) = self.layers.get_mut(k) {
                 l.1 = self.frame;
@@ -157,7 +233,7 @@ impl FlyGpu {
         }
         let mut free: Vec<u32> = {
             let used: std::collections::HashSet<u32> = self.layers.values().map(|l| l.0).collect();
-            (0..self.capacity).filter(|l| !used.contains(l)).collect()
+            (0..pool).filter(|l| !used.contains(l)).collect()
         };
         for (k, texels) in &pages.maps {
             if self.layers.contains_key(k) {
@@ -183,33 +259,29 @@ impl FlyGpu {
             if texels.len() != (MAP * MAP * 4) as usize {
                 return Err(GpuError::Render(format!("map z{} x{} y{} has {} bytes", k.z, k.x, k.y, texels.len())));
             }
-            queue.write_texture(
-                wgpu::TexelCopyTextureInfo {
-                    texture: tex,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d { x: 0, y: 0, z: layer },
-                    aspect: wgpu::TextureAspect::All,
-                },
-                texels,
-                wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(MAP * 4), rows_per_image: Some(MAP) },
-                wgpu::Extent3d { width: MAP, height: MAP, depth_or_array_layers: 1 },
-            );
+            upload(layer, texels);
             self.layers.insert(*k, (layer, self.frame));
         }
-        Ok(pages
+        let slots = pages
             .slots
             .iter()
             .map(|s| match s.and_then(|k| self.layers.get(&k).map(|l| (l.0, k.z))) {
                 Some((layer, z)) => [layer as i32, z as i32],
                 None => [-1, 0],
             })
-            .collect())
+            .collect();
+        Ok((slots, first_generic))
     }
 }
 
 impl GpuRenderer {
     /// Renders one flight frame with `terrain.wgsl` and reads it back.
-    pub fn render_fly(&mut self, u: &FlyUniform, pages: &FlyPages) -> Result<Frame, RenderError> {
+    pub fn render_fly(
+        &mut self,
+        u: &FlyUniform,
+        pages: &FlyPages,
+        ground: FlyGround<'_>,
+    ) -> Result<Frame, RenderError> {
         let (w, h) = (u.sizes[0], u.sizes[1]);
         self.check_output(w, h)?;
         if pages.levels == 0 || pages.levels > MAX_LEVELS || pages.origins.len() != pages.levels as usize {
@@ -233,7 +305,25 @@ impl GpuRenderer {
         let Some(fg) = self.fly.as_mut() else {
             return Err(RenderError::Gpu(GpuError::Render("flight pipeline missing".into())));
         };
-        let slots = fg.sync(device, queue, pages)?;
+        let (mesh, generic) = match ground {
+            FlyGround::Flat => (None, None),
+            FlyGround::Mesh { mesh, generic } => {
+                if mesh.indices.iter().any(|&i| i as usize >= mesh.vertices.len()) {
+                    return Err(RenderError::Invalid("a flight mesh index is out of range".into()));
+                }
+                (Some(mesh), Some(generic))
+            }
+        };
+        let (slots, first_generic) = fg.sync(device, queue, pages, generic)?;
+        let mut u = *u;
+        u.params[1] = first_generic;
+        if let Some(g) = generic {
+            u.params[2] = g.levels.len() as u32;
+            u.params[3] = g.side;
+        } else {
+            u.params[2] = 0;
+        }
+        let u = &u;
         // page table: 32 origins, then the slots
         let mut bytes: Vec<i32> = Vec::with_capacity(MAX_LEVELS as usize * 4 + slots.len() * 2);
         for z in 0..MAX_LEVELS as usize {
@@ -270,13 +360,38 @@ impl GpuRenderer {
                 wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&view) },
             ],
         });
+        let buffers = mesh.filter(|m| !m.indices.is_empty()).map(|m| {
+            let v = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("fly vertices"),
+                contents: bytemuck::cast_slice(&m.vertices),
+                usage: wgpu::BufferUsages::VERTEX,
+            });
+            let i = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("fly indices"),
+                contents: bytemuck::cast_slice(&m.indices),
+                usage: wgpu::BufferUsages::INDEX,
+            });
+            (v, i, (m.indices.len() / 3 * 3) as u32)
+        });
         self.ensure_target(w, h);
         let Some(fg) = self.fly.as_ref() else {
             return Err(RenderError::Gpu(GpuError::Render("flight pipeline missing".into())));
         };
+        let flat = mesh.is_none();
         self.pass_and_read(w, h, [0, 0, 0, 255], |pass| {
-            pass.set_pipeline(&fg.pipeline);
             pass.set_bind_group(0, &group, &[]);
+            if flat {
+                pass.set_pipeline(&fg.pipeline);
+                pass.draw(0..3, 0..1);
+                return;
+            }
+            if let Some((v, i, n)) = &buffers {
+                pass.set_pipeline(&fg.mesh_pipeline);
+                pass.set_vertex_buffer(0, v.slice(..));
+                pass.set_index_buffer(i.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..*n, 0, 0..1);
+            }
+            pass.set_pipeline(&fg.sky_pipeline);
             pass.draw(0..3, 0..1);
         })
     }
