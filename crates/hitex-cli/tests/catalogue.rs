@@ -126,6 +126,22 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
         &["terrain", "fly", &s(&store), "-o", &s(&d.join("frames"))],
     ));
     v.push(c("terrain build", "no imagery given", &["terrain", "build", "-o", &s(&d.join("st"))]));
+    let flat = d.join("flat-store");
+    assert!(hitex(&["terrain", "build", "--procedural", "300x300", "-o", &s(&flat)]).status.success());
+    v.push(c(
+        "terrain fly",
+        "--ground relief, the store holds no DEM",
+        &["terrain", "fly", &s(&flat), "--ground", "relief", "-o", &s(&d.join("frames"))],
+    ));
+    let olinda = d.join("olinda-store");
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/olinda/");
+    let (dem, image) = (format!("{data}olinda_dem_utm25s.tif"), format!("{data}L7_ETMs.tif"));
+    assert!(hitex(&["terrain", "build", "--image", &image, "--dem", &dem, "-o", &s(&olinda)]).status.success());
+    v.push(c(
+        "terrain fly",
+        "camera below the exaggerated relief",
+        &["terrain", "fly", &s(&olinda), "--altitude", "1", "--exaggeration", "50", "-o", &s(&d.join("frames"))],
+    ));
     v.push(c(
         "output image",
         "folder does not exist",

@@ -89,33 +89,42 @@ impl Program<'_> {
         (g[0].is_finite() && g[1].is_finite()).then_some(g)
     }
 
+    #[inline]
     fn decode(&self, t: &[u8], i: usize) -> [f32; 4] {
-        [self.lut[t[i] as usize], self.lut[t[i + 1] as usize], self.lut[t[i + 2] as usize], t[i + 3] as f32 / 255.0]
+        let Some(p) = t.get(i..i + 4) else { return [0.0; 4] };
+        [self.lut[p[0] as usize], self.lut[p[1] as usize], self.lut[p[2] as usize], p[3] as f32 / 255.0]
     }
 
-    /// Linear RGBA of texel (tx, ty) of level z through the page table.
-    fn texel(&self, z: u32, tx: i32, ty: i32) -> [f32; 4] {
+    /// The map serving texel (tx, ty) of level z through the page table, and
+    /// the shift from level z's texels to that map's: None where no data lies.
+    #[inline]
+    fn serving(&self, z: u32, tx: i32, ty: i32) -> Option<(&[u8], u32)> {
         let per = self.pages.per_side as i32;
-        let (mut z, mut tx, mut ty) = (z, tx, ty);
+        let (mut z, mut tx, mut ty, mut steps) = (z, tx, ty, 0u32);
         loop {
             let o = self.pages.origins[z as usize];
-            let (mx, my) = (tx.div_euclid(MAP as i32) - o[0], ty.div_euclid(MAP as i32) - o[1]);
+            let (mx, my) = ((tx >> 8) - o[0], (ty >> 8) - o[1]);
             if mx >= 0 && my >= 0 && mx < per && my < per {
-                let Some((found, t)) = self.slots[(z as i32 * per * per + my * per + mx) as usize] else {
-                    return [0.0; 4];
-                };
                 // a coarser resident map stands in: its texel containing this one
-                let k = z - found;
-                let (lx, ly) = ((tx >> k).rem_euclid(MAP as i32) as usize, (ty >> k).rem_euclid(MAP as i32) as usize);
-                return self.decode(t, (ly * MAP as usize + lx) * 4);
+                let (found, t) = self.slots[(z as i32 * per * per + my * per + mx) as usize]?;
+                return Some((t, steps + z - found));
             }
             // outside the active area: the next coarser level covers it
             if z == 0 {
-                return [0.0; 4];
+                return None;
             }
             z -= 1;
             tx >>= 1;
             ty >>= 1;
+            steps += 1;
+        }
+    }
+
+    /// Linear RGBA of texel (tx, ty) of level z through the page table.
+    fn texel(&self, z: u32, tx: i32, ty: i32) -> [f32; 4] {
+        match self.serving(z, tx, ty) {
+            Some((t, k)) => self.decode(t, ((((ty >> k) & 255) << 8 | ((tx >> k) & 255)) * 4) as usize),
+            None => [0.0; 4],
         }
     }
 
@@ -125,6 +134,19 @@ impl Program<'_> {
         let (x0, y0) = (floor(x), floor(y));
         let (fx, fy) = (x - x0, y - y0);
         let (ix, iy) = (x0 as i32, y0 as i32);
+        // the four texels share one map unless they straddle a map edge: resolve it once
+        if ix & 255 != 255 && iy & 255 != 255 {
+            let Some((t, k)) = self.serving(z, ix, iy) else { return [0.0; 4] };
+            let (x0, x1) = ((ix >> k) & 255, ((ix + 1) >> k) & 255);
+            let (y0, y1) = (((iy >> k) & 255) << 8, (((iy + 1) >> k) & 255) << 8);
+            let c = [
+                self.decode(t, ((y0 | x0) * 4) as usize),
+                self.decode(t, ((y0 | x1) * 4) as usize),
+                self.decode(t, ((y1 | x0) * 4) as usize),
+                self.decode(t, ((y1 | x1) * 4) as usize),
+            ];
+            return lerp2(c, fx, fy);
+        }
         let c = [
             self.texel(z, ix, iy),
             self.texel(z, ix + 1, iy),
