@@ -90,8 +90,8 @@ pub struct RenderArgs {
     /// Elevation model: GeoTIFF, SRTM .hgt, ESRI ASCII .asc, numpy .npy/.npz.
     #[arg(long)]
     pub dem: PathBuf,
-    /// Imagery (GeoTIFF, same CRS as the DEM); without it the terrain is
-    /// coloured by elevation.
+    /// Imagery: a GeoTIFF in the DEM's CRS, or PNG/JPEG with a world file
+    /// (.pgw/.jgw/.wld; used as RGB); without it the terrain is coloured by elevation.
     #[arg(long)]
     pub image: Option<PathBuf>,
     /// Image bands for red, green, blue (1-based), e.g. Landsat's 3,2,1.
@@ -139,6 +139,32 @@ pub(crate) fn stretched(img: &GeoRaster, bands: [usize; 3]) -> Result<Image, Cli
         [c(0), c(1), c(2), 255]
     })
     .map_err(|e| CliError::Input(e.to_string()))
+}
+
+/// PNG/JPEG imagery georeferenced by its world file, checked against the
+/// DEM: world files carry no CRS, so the DEM's is assumed (and said); the
+/// extents must overlap. Returns the raster and its pixels as RGB.
+pub(crate) fn world_imagery(
+    path: &std::path::Path,
+    dem: &GeoRaster,
+    dem_path: &std::path::Path,
+) -> Result<(GeoRaster, Image), CliError> {
+    let mut img = hitex_io::geotiff::load_world_image(path)?;
+    eprintln!(
+        "hitex: note: {} is georeferenced by a world file, which names no CRS: taken to be the DEM's ({})",
+        path.display(),
+        dem.crs_name()
+    );
+    img.epsg = dem.epsg;
+    img.projection = dem.projection;
+    img.citation = dem.citation.clone();
+    check_coregistered(dem, &img, dem_path, path)?;
+    let rgb = Image::from_fn(img.width, img.height, ColorSpace::Srgb, |x, y| {
+        let c = |k: usize| img.get(x, y, k).clamp(0.0, 255.0) as u8;
+        [c(0), c(1), c(2), 255]
+    })
+    .map_err(|e| CliError::Input(e.to_string()))?;
+    Ok((img, rgb))
 }
 
 /// `--bands "3,2,1"` as 0-based indices.
@@ -230,6 +256,10 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     }
     let heights: Vec<f32> = (0..dem.width * dem.height).map(|i| dem.data[i as usize * dem.bands]).collect();
     let (pyramid, image_extent) = match &a.image {
+        Some(path) if hitex_io::geotiff::is_world_image(path) => {
+            let (img, rgb) = world_imagery(path, &dem, &a.dem)?;
+            (MipPyramid::build(rgb), img.extent())
+        }
         Some(path) => {
             let img = load_geotiff(path)?;
             let bands = check_bands(bands, &img, path)?;

@@ -6,7 +6,8 @@ use clap::Args;
 use glam::DVec2;
 use hitex_core::residency::{MapKey, ResidentMaps, View, active_maps};
 use hitex_io::gst::{
-    BuildOptions, GeoTiffSource, ProceduralSource, StoreMeta, TILE, TileSource, build_store, open_store, read_tile,
+    BuildOptions, GeoTiffSource, MemorySource, ProceduralSource, StoreMeta, TILE, TileSource, build_store, open_store,
+    read_tile,
 };
 use hitex_render::terrain::{FlyCamera, FlyGround, FlyMesh, FlyPages, FlySampler, FlyUniform, GenericTexture};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -18,7 +19,8 @@ use std::time::{Duration, Instant};
 /// Arguments of `hitex terrain build`.
 #[derive(Args)]
 pub struct BuildArgs {
-    /// Imagery: a GeoTIFF (bands chosen with --bands, stretched 2–98 %).
+    /// Imagery: a GeoTIFF (bands chosen with --bands, stretched 2–98 %, read
+    /// by windows), or PNG/JPEG with a world file (used as RGB; needs --dem for its CRS).
     #[arg(long, conflicts_with = "procedural")]
     pub image: Option<PathBuf>,
     /// Image bands for red, green, blue (1-based).
@@ -62,6 +64,27 @@ fn parse_shard(s: &str) -> Result<(u32, u32), String> {
 pub fn build(a: BuildArgs) -> Result<(), CliError> {
     let t = Instant::now();
     let (source, meta): (Box<dyn TileSource>, StoreMeta) = match (&a.image, a.procedural) {
+        (Some(path), _) if hitex_io::geotiff::is_world_image(path) => {
+            let Some(d) = &a.dem else {
+                return Err(CliError::Input(format!(
+                    "{}: a world file names no CRS; give --dem so that the imagery takes the DEM's",
+                    path.display()
+                )));
+            };
+            let dem = hitex_io::dem::load_elevation(d)?;
+            let (img, rgb) = crate::terrain_cmd::world_imagery(path, &dem, d)?;
+            let name = format!("{} (world file)", path.display());
+            let meta = StoreMeta::for_source(
+                img.width,
+                img.height,
+                img.origin,
+                img.pixel,
+                &img.epsg.map_or_else(|| img.crs_name(), |e| format!("EPSG:{e}")),
+                &name,
+            );
+            let src = MemorySource { width: img.width, height: img.height, rgba: rgb.bytes().to_vec(), name };
+            (Box::new(src) as Box<dyn TileSource>, meta)
+        }
         (Some(path), _) => {
             // read by windows: memory stays bounded whatever the file's size
             let tiff = hitex_io::geotiff::GeoTiffWindows::open(path)?;

@@ -137,6 +137,13 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
     let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/olinda/");
     let (dem, image) = (format!("{data}olinda_dem_utm25s.tif"), format!("{data}L7_ETMs.tif"));
     assert!(hitex(&["terrain", "build", "--image", &image, "--dem", &dem, "-o", &s(&olinda)]).status.success());
+    let world = w("ortho.png", &std::fs::read(&image_png_for_catalogue(d)).unwrap());
+    std::fs::write(d.join("ortho.pgw"), "28.5\n0.2\n0\n-28.5\n288790\n9120740\n").unwrap();
+    v.push(c(
+        "world file",
+        "rotation terms (a rotated raster)",
+        &["terrain", "render", "--dem", &dem, "--image", &world, "-o", &out],
+    ));
     v.push(c(
         "terrain fly",
         "camera below the exaggerated relief",
@@ -308,4 +315,11 @@ fn the_catalogue_matches_the_behaviour() {
         have, table,
         "docs/bad-input.md differs from the behaviour; rerun with HITEX_BLESS=1 and review the diff"
     );
+}
+
+/// A small PNG written into `d` for the world-file case.
+fn image_png_for_catalogue(d: &Path) -> std::path::PathBuf {
+    let p = d.join("ortho-source.png");
+    hitex_io::save_png(&p, 2, 2, &[200; 16]).unwrap();
+    p
 }

@@ -205,3 +205,49 @@ fn a_geotiff_larger_than_the_memory_cap_builds_by_windows() {
     // band 3 (y / 8) rises southwards: the map's rows do too
     assert!(t.get_pixel(0, 200)[0] > t.get_pixel(0, 10)[0], "{:?} {:?}", t.get_pixel(0, 200), t.get_pixel(0, 10));
 }
+
+#[test]
+fn png_imagery_with_a_world_file_builds_and_renders() {
+    let d = tmp("store-world");
+    let png = d.join("ortho.png");
+    // 64×64 pixels of 160 m over the Olinda DEM's area (UTM 25S)
+    let img = image::RgbaImage::from_fn(64, 64, |x, y| image::Rgba([(x * 4) as u8, (y * 4) as u8, 128, 255]));
+    img.save(&png).unwrap();
+    let dem = olinda("olinda_dem_utm25s.tif");
+    let (p, out) = (png.to_str().unwrap(), d.join("r.png"));
+    // no world file: not georeferenced
+    let o = hitex(&["terrain", "render", "--dem", &dem, "--image", p, "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no world file"), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::write(d.join("ortho.pgw"), "160\n0\n0\n-160\n288856\n9120680\n").unwrap();
+    let o = hitex(&[
+        "terrain",
+        "render",
+        "--dem",
+        &dem,
+        "--image",
+        p,
+        "--size",
+        "64x48",
+        "--backend",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("names no CRS"));
+    // a store from it, which needs the DEM for its CRS
+    let store = d.join("store");
+    let o = hitex(&["terrain", "build", "--image", p, "-o", store.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--dem"), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = hitex(&["terrain", "build", "--image", p, "--dem", &dem, "-o", store.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let meta = std::fs::read_to_string(store.join("metadata.json")).unwrap();
+    assert!(meta.contains("288776") && meta.contains("\"width\": 64"), "{meta}");
+    // far from the DEM: the extents do not overlap
+    std::fs::write(d.join("ortho.pgw"), "160\n0\n0\n-160\n100\n100\n").unwrap();
+    let o = hitex(&["terrain", "render", "--dem", &dem, "--image", p, "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("do not overlap"), "{}", String::from_utf8_lossy(&o.stderr));
+}

@@ -327,6 +327,77 @@ pub fn stretch_range(samples: impl Iterator<Item = f32>) -> Option<(f32, f32)> {
     Some((lo, if hi > lo { hi } else { lo + 1.0 }))
 }
 
+/// Whether `path` names PNG or JPEG imagery (georeferenced by a world file).
+pub fn is_world_image(path: &Path) -> bool {
+    path.extension().and_then(|e| e.to_str()).is_some_and(|e| {
+        let e = e.to_ascii_lowercase();
+        e == "png" || e == "jpg" || e == "jpeg"
+    })
+}
+
+/// The world file beside `image`: `name.pgw` / `name.jgw` (first and last
+/// letter of the extension + w), `name.pngw` / `name.jpgw`, or `name.wld`.
+pub fn world_file_for(image: &Path) -> Option<std::path::PathBuf> {
+    let ext = image.extension()?.to_str()?.to_ascii_lowercase();
+    let short = format!("{}{}w", ext.chars().next()?, ext.chars().last()?);
+    [short, format!("{ext}w"), "wld".to_string()]
+        .into_iter()
+        .flat_map(|e| [image.with_extension(&e), image.with_extension(e.to_ascii_uppercase())])
+        .find(|p| p.is_file())
+}
+
+/// Parses an ESRI world file (six numbers, one per line: x pixel size, two
+/// rotation terms, negative y pixel size, x and y of the upper-left pixel's
+/// centre) into the raster's north-west corner and pixel size. Rotated
+/// rasters are refused.
+pub fn parse_world_file(text: &str, path: &Path) -> Result<([f64; 2], [f64; 2]), IoError> {
+    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+    let lines: Vec<&str> = text.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+    if lines.len() != 6 {
+        return Err(fmt(format!("a world file has 6 numbers, one per line; this one has {} lines", lines.len())));
+    }
+    let mut v = [0.0f64; 6];
+    for (k, l) in lines.iter().enumerate() {
+        v[k] = l
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| fmt(format!("line {}: '{l}' is not a finite number", k + 1)))?;
+    }
+    let [a, d, b, e, c, f] = v;
+    if b != 0.0 || d != 0.0 {
+        return Err(fmt(format!("line 2–3: rotation terms {d}, {b}: rotated rasters are not supported")));
+    }
+    if a <= 0.0 || e >= 0.0 {
+        return Err(fmt(format!("pixel size {a} × {e}: x must be positive and y negative (rows run north to south)")));
+    }
+    Ok(([c - a / 2.0, f - e / 2.0], [a, -e]))
+}
+
+/// PNG or JPEG imagery with its world file: three bands (red, green, blue,
+/// 0–255), CRS unknown (world files carry none).
+pub fn load_world_image(path: &Path) -> Result<GeoRaster, IoError> {
+    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+    let world = world_file_for(path)
+        .ok_or_else(|| fmt("no world file beside it (.pgw/.jgw, .pngw/.jpgw or .wld): not georeferenced".into()))?;
+    let text = std::fs::read_to_string(&world).map_err(|source| IoError::Read { path: world.clone(), source })?;
+    let (origin, pixel) = parse_world_file(&text, &world)?;
+    let img = crate::load_image(path, hitex_core::texture::ColorSpace::Srgb)?;
+    let data = img.bytes().chunks_exact(4).flat_map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]).collect();
+    Ok(GeoRaster {
+        width: img.width(),
+        height: img.height(),
+        bands: 3,
+        data,
+        origin,
+        pixel,
+        nodata: None,
+        epsg: None,
+        projection: None,
+        citation: None,
+    })
+}
+
 /// Replaces nodata and non-finite samples of band 0 by the mean of their
 /// valid neighbours, growing inwards until every hole is filled; returns how
 /// many samples were filled.
@@ -459,5 +530,35 @@ mod tests {
         assert_eq!(stretch_range(ramp), Some((2.0, 98.0)));
         assert_eq!(stretch_range([5.0f32; 10].into_iter()), Some((5.0, 6.0)));
         assert_eq!(stretch_range([f32::NAN].into_iter()), None);
+    }
+
+    #[test]
+    fn world_files_are_read_and_bad_ones_refused() {
+        let p = Path::new("x.pgw");
+        let (o, px) = parse_world_file("28.5\n0\n0\n-28.5\n290014.25\n9120985.75\n", p).unwrap();
+        assert_eq!(o, [290000.0, 9121000.0]);
+        assert_eq!(px, [28.5, 28.5]);
+        for bad in [
+            "28.5\n0\n0\n-28.5\n1\n",
+            "28.5\n0\n0\n-28.5\n1\nnorth\n",
+            "28.5\n0.1\n0\n-28.5\n1\n2\n",
+            "28.5\n0\n0\n28.5\n1\n2\n",
+            "0\n0\n0\n-1\n1\n2\n",
+            "1\n0\n0\n-1\ninf\n2\n",
+        ] {
+            let e = parse_world_file(bad, p).unwrap_err().to_string();
+            assert!(e.contains("x.pgw"), "{e}");
+        }
+        // an image and its world file, found by name
+        let dir = std::env::temp_dir().join(format!("hitex-world-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let png = dir.join("ortho.png");
+        crate::save_png(&png, 2, 1, &[255, 0, 0, 255, 0, 0, 255, 255]).unwrap();
+        assert!(load_world_image(&png).unwrap_err().to_string().contains("no world file"));
+        std::fs::write(dir.join("ortho.pgw"), "10\n0\n0\n-10\n105\n195\n").unwrap();
+        let r = load_world_image(&png).unwrap();
+        assert_eq!((r.width, r.height, r.bands, r.origin, r.pixel), (2, 1, 3, [100.0, 200.0], [10.0, 10.0]));
+        assert_eq!(&r.data[..6], &[255.0, 0.0, 0.0, 0.0, 0.0, 255.0]);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
