@@ -137,7 +137,7 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
     let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/olinda/");
     let (dem, image) = (format!("{data}olinda_dem_utm25s.tif"), format!("{data}L7_ETMs.tif"));
     assert!(hitex(&["terrain", "build", "--image", &image, "--dem", &dem, "-o", &s(&olinda)]).status.success());
-    let world = w("ortho.png", &std::fs::read(&image_png_for_catalogue(d)).unwrap());
+    let world = w("ortho.png", &std::fs::read(image_png_for_catalogue(d)).unwrap());
     std::fs::write(d.join("ortho.pgw"), "28.5\n0.2\n0\n-28.5\n288790\n9120740\n").unwrap();
     v.push(c(
         "world file",
