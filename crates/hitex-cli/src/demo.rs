@@ -28,6 +28,20 @@ pub fn side_by_side(frames: &[Frame]) -> Frame {
     Frame { width: w, height: h, rgba }
 }
 
+/// |a − b| per channel, × 8 (a difference image for the gallery).
+fn diff_x8(a: &Frame, b: &Frame) -> Frame {
+    let rgba = a
+        .rgba
+        .chunks_exact(4)
+        .zip(b.rgba.chunks_exact(4))
+        .flat_map(|(a, b)| {
+            let d = |k: usize| ((a[k] as i32 - b[k] as i32).unsigned_abs() * 8).min(255) as u8;
+            [d(0), d(1), d(2), 255]
+        })
+        .collect();
+    Frame { width: a.width, height: a.height, rgba }
+}
+
 fn with_filter(scene: &Scene, filter: Filter) -> Scene {
     let mut s = scene.clone();
     for m in &mut s.materials {
@@ -100,20 +114,7 @@ fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) ->
         panels.push(r.render_btf(&p, &cam, light, side, side)?);
         ms_sum += t.elapsed().as_secs_f64() * 1e3;
     }
-    let diff = Frame {
-        width: side,
-        height: side,
-        rgba: panels[0]
-            .rgba
-            .chunks_exact(4)
-            .zip(panels[2].rgba.chunks_exact(4))
-            .flat_map(|(a, b)| {
-                let d = |k: usize| ((a[k] as i32 - b[k] as i32).unsigned_abs() * 8).min(255) as u8;
-                [d(0), d(1), d(2), 255]
-            })
-            .collect(),
-    };
-    panels.push(diff);
+    panels.push(diff_x8(&panels[0], &panels[2]));
     report(
         "btf-layouts.png",
         "layout (a), 64 reads | (f), 8 reads | (f) + BC1 | |(a) − (f)+BC1| × 8",
@@ -209,20 +210,7 @@ fn terrain_showcase(
         panels.push(load(&d.join("frame-0000.png"))?);
     }
     let ms = t.elapsed().as_secs_f64() * 1e3;
-    let diff = Frame {
-        width: panels[0].width,
-        height: panels[0].height,
-        rgba: panels[0]
-            .rgba
-            .chunks_exact(4)
-            .zip(panels[1].rgba.chunks_exact(4))
-            .flat_map(|(a, b)| {
-                let d = |k: usize| ((a[k] as i32 - b[k] as i32).unsigned_abs() * 8).min(255) as u8;
-                [d(0), d(1), d(2), 255]
-            })
-            .collect(),
-    };
-    panels.push(diff);
+    panels.push(diff_x8(&panels[0], &panels[1]));
     report(
         "terrain-spans.png",
         "Olinda: trilinear | span 3x3 | span 4x4 | |trilinear - span 3x3| x 8",

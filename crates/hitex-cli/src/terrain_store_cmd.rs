@@ -61,6 +61,12 @@ fn parse_shard(s: &str) -> Result<(u32, u32), String> {
 }
 
 /// `hitex terrain build`.
+/// The store metadata of georeferenced imagery `img` described as `name`.
+fn meta_for(img: &hitex_io::geotiff::GeoRaster, name: &str) -> StoreMeta {
+    let crs = img.epsg.map_or_else(|| img.crs_name(), |e| format!("EPSG:{e}"));
+    StoreMeta::for_source(img.width, img.height, img.origin, img.pixel, &crs, name)
+}
+
 pub fn build(a: BuildArgs) -> Result<(), CliError> {
     let t = Instant::now();
     let (source, meta): (Box<dyn TileSource>, StoreMeta) = match (&a.image, a.procedural) {
@@ -74,14 +80,7 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
             let dem = hitex_io::dem::load_elevation(d)?;
             let (img, rgb) = crate::terrain_cmd::world_imagery(path, &dem, d)?;
             let name = format!("{} (world file)", path.display());
-            let meta = StoreMeta::for_source(
-                img.width,
-                img.height,
-                img.origin,
-                img.pixel,
-                &img.epsg.map_or_else(|| img.crs_name(), |e| format!("EPSG:{e}")),
-                &name,
-            );
+            let meta = meta_for(&img, &name);
             let src = MemorySource { width: img.width, height: img.height, rgba: rgb.bytes().to_vec(), name };
             (Box::new(src) as Box<dyn TileSource>, meta)
         }
@@ -95,14 +94,7 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
             }
             let bands = crate::terrain_cmd::parse_bands(&a.bands, &img, path)?;
             let name = format!("{} bands {}", path.display(), a.bands);
-            let meta = StoreMeta::for_source(
-                img.width,
-                img.height,
-                img.origin,
-                img.pixel,
-                &img.epsg.map_or_else(|| img.crs_name(), |e| format!("EPSG:{e}")),
-                &name,
-            );
+            let meta = meta_for(&img, &name);
             (Box::new(GeoTiffSource::new(tiff, bands, name)?), meta)
         }
         (None, Some((w, h))) => {
