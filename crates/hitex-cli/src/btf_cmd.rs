@@ -27,7 +27,7 @@ pub enum BtfCommand {
         #[arg(long, default_value_t = 32)]
         size: u32,
         /// Polar angles in degrees, comma-separated (default: 0,10,…,70).
-        #[arg(long, value_delimiter = ',')]
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
         theta: Option<Vec<f32>>,
         /// Azimuth count (default 16).
         #[arg(long, default_value_t = 16)]
@@ -69,7 +69,7 @@ pub enum BtfCommand {
         #[arg(long)]
         size: Option<u32>,
         /// Target polar angles (degrees, comma-separated) for resampling.
-        #[arg(long, value_delimiter = ',')]
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
         theta: Option<Vec<f32>>,
         /// Target azimuth count for resampling.
         #[arg(long)]
@@ -79,7 +79,8 @@ pub enum BtfCommand {
     Export {
         /// Input `.hbtf`.
         input: PathBuf,
-        /// Output folder.
+        /// Output folder (created; an existing one must be empty).
+        #[arg(short, long)]
         output: PathBuf,
         /// File-name convention.
         #[arg(long, value_enum, default_value_t = ConventionArg::Utia)]
@@ -105,13 +106,13 @@ pub enum BtfCommand {
         #[arg(long)]
         index: Option<PathBuf>,
         /// Index-map repeats across the surface.
-        #[arg(long, default_value_t = 1.0)]
+        #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
         repeats: f32,
         /// Light azimuth in degrees around the surface.
-        #[arg(long, default_value_t = 30.0)]
+        #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
         light_azimuth: f32,
         /// Light elevation in degrees above the surface's plane.
-        #[arg(long, default_value_t = 45.0)]
+        #[arg(long, default_value_t = 45.0, allow_negative_numbers = true)]
         light_elevation: f32,
         /// Output size, WIDTHxHEIGHT.
         #[arg(long, value_parser = parse_size, default_value = "640x480")]
@@ -131,7 +132,7 @@ pub enum ConventionArg {
     Utia,
 }
 
-fn bar(len: u64, what: &str) -> ProgressBar {
+pub(crate) fn bar(len: u64, what: &str) -> ProgressBar {
     let pb = ProgressBar::new(len);
     pb.set_style(
         ProgressStyle::with_template("{prefix:>12} [{bar:30}] {pos}/{len} {msg} {elapsed}")
@@ -191,13 +192,16 @@ pub fn save_index(map: &IndexMap, path: &Path) -> Result<(), CliError> {
     }
     let img = image::ImageBuffer::<image::Rgb<u16>, _>::from_raw(map.width, map.height, data)
         .ok_or_else(|| CliError::Internal("index map buffer has the wrong size".into()))?;
-    let tmp = path.with_extension("png.tmp");
-    img.save_with_format(&tmp, image::ImageFormat::Png)
+    if crate::image_out(path)? != crate::ImageOut::Png {
+        return Err(CliError::Input(format!(
+            "{}: an index map is written as a 16-bit PNG: name it .png",
+            path.display()
+        )));
+    }
+    let mut buf = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut buf, image::ImageFormat::Png)
         .map_err(|e| CliError::Internal(format!("{}: {e}", path.display())))?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        CliError::Internal(format!("{}: {e}", path.display()))
-    })
+    hitex_io::write_atomic(path, buf.get_ref()).map_err(CliError::from)
 }
 
 /// Reads an index map PNG written by [`save_index`] (8- or 16-bit), checking
@@ -358,6 +362,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             Ok(())
         }
         BtfCommand::Index { input, size, output, seed, passes } => {
+            crate::image_out(&output)?;
             let btf = load_or_synth(&input, false)?;
             let t = Instant::now();
             let map = index_with_progress(&btf, size, seed, passes, false)?;
@@ -427,7 +432,21 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 ConventionArg::Ubo => hitex_io::btf_images::Convention::Ubo,
                 ConventionArg::Utia => hitex_io::btf_images::Convention::Utia,
             };
-            let n = hitex_io::btf_images::export_image_set(&btf, &output, conv)?;
+            if let Ok(mut entries) = std::fs::read_dir(&output)
+                && entries.next().is_some()
+            {
+                return Err(CliError::Input(format!(
+                    "{}: the folder is not empty; export into a new or empty folder so that two image sets never mix",
+                    output.display()
+                )));
+            }
+            let g = btf.grid();
+            let total = (g.directions() * g.directions()) as u64;
+            let pb = bar(total, "export");
+            let n = hitex_io::btf_images::export_image_set_with(&btf, &output, conv, &mut |done, _| {
+                pb.set_position(done as u64)
+            })?;
+            pb.finish_and_clear();
             println!("wrote {n} images to {}", output.display());
             Ok(())
         }
@@ -444,6 +463,18 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             size,
             backend,
         } => {
+            crate::image_out(&output)?;
+            if !(repeats.is_finite() && repeats > 0.0 && repeats <= 1000.0) {
+                return Err(CliError::Input(format!("--repeats {repeats} must be in (0, 1000]")));
+            }
+            if !light_azimuth.is_finite() {
+                return Err(CliError::Input(format!("--light-azimuth {light_azimuth} must be finite (degrees)")));
+            }
+            if !(light_elevation.is_finite() && light_elevation > 0.0 && light_elevation <= 90.0) {
+                return Err(CliError::Input(format!(
+                    "--light-elevation {light_elevation} must be in (0, 90] degrees above the surface"
+                )));
+            }
             let layout = parse_layout(&layout)?;
             let btf = load_or_synth(&input, false)?;
             let map = match index {

@@ -149,7 +149,7 @@ fn terrain_showcase(
 ) -> Result<usize, CliError> {
     use crate::terrain_store_cmd::{BuildArgs, FlyArgs, GroundArg, SamplerArg, build, fly};
     let dir = out.join("olinda");
-    std::fs::create_dir_all(&dir).map_err(|e| CliError::Internal(format!("cannot create {}: {e}", dir.display())))?;
+    hitex_io::create_output_dir(&dir)?;
     let (dem, image) = (dir.join("olinda_dem_utm25s.tif"), dir.join("L7_ETMs.tif"));
     hitex_io::write_atomic(&dem, OLINDA_DEM)?;
     hitex_io::write_atomic(&image, OLINDA_IMAGE)?;
@@ -162,6 +162,8 @@ fn terrain_showcase(
         procedural: None,
         output: store.clone(),
         shard: (0, 1),
+        max_maps: crate::terrain_store_cmd::DEFAULT_MAX_MAPS,
+        ignore_free_space: false,
     })?;
     let backend = match backend {
         BackendChoice::Auto => crate::Backend::Auto,
@@ -222,7 +224,7 @@ fn terrain_showcase(
 
 /// Renders the showcase images into `out`.
 pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(), CliError> {
-    std::fs::create_dir_all(out).map_err(|e| CliError::Internal(format!("cannot create {}: {e}", out.display())))?;
+    hitex_io::create_output_dir(out)?;
     let mut r = AnyRenderer::open(backend)?;
     println!("hitex demo: rendering with {}", r.name());
     let base = showcase_scene();

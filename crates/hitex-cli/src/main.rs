@@ -160,6 +160,8 @@ pub enum CliError {
 impl From<hitex_io::IoError> for CliError {
     fn from(e: hitex_io::IoError) -> Self {
         match e {
+            // a write that failed (disk full, read-only, I/O error) is not the
+            // input's fault; a path that cannot hold the output is
             hitex_io::IoError::Write { .. } => CliError::Internal(e.to_string()),
             _ => CliError::Input(e.to_string()),
         }
@@ -189,6 +191,8 @@ pub enum Engine {
 pub struct AnyRenderer {
     backend: Engine,
     auto: bool,
+    /// Why `auto` chose the CPU backend.
+    note: Option<String>,
 }
 
 impl AnyRenderer {
@@ -197,18 +201,32 @@ impl AnyRenderer {
     /// `HITEX_GPU_FAULT=device-lost` destroys the GPU device right after it
     /// opens, as a driver reset would (for testing the fallback paths).
     pub fn open(choice: BackendChoice) -> Result<Self, CliError> {
+        // `auto` takes a hardware GPU only: on a software rasterizer the CPU
+        // backend is faster (HITEX_SOFTWARE_GPU=1 lets auto take one anyway)
+        let software_ok = choice != BackendChoice::Auto || std::env::var_os("HITEX_SOFTWARE_GPU").is_some();
         let gpu = || -> Result<GpuRenderer, hitex_render::GpuError> {
-            let g = GpuRenderer::new()?;
+            let g = if software_ok { GpuRenderer::new()? } else { GpuRenderer::hardware()? };
             if std::env::var("HITEX_GPU_FAULT").is_ok_and(|f| f == "device-lost") {
                 g.context().lose_device();
             }
             Ok(g)
         };
+        let mut note = None;
         let backend = match choice {
             BackendChoice::Cpu => Engine::Cpu(CpuRenderer::new()),
-            BackendChoice::Gpu => Engine::Gpu(Box::new(gpu().map_err(|e| CliError::Internal(e.to_string()))?)),
+            BackendChoice::Gpu => Engine::Gpu(Box::new(gpu().map_err(|e| match e {
+                hitex_render::GpuError::NoAdapter => {
+                    CliError::Input(format!("--backend gpu: {e}; --backend cpu or auto render without one"))
+                }
+                e => CliError::Internal(e.to_string()),
+            })?)),
             BackendChoice::Auto => match gpu() {
                 Ok(g) => Engine::Gpu(Box::new(g)),
+                Err(hitex_render::GpuError::SoftwareOnly(_)) => {
+                    // said in the renderer's name, which every command prints
+                    note = Some("auto: no hardware GPU, and the software one is slower".to_string());
+                    Engine::Cpu(CpuRenderer::new())
+                }
                 Err(e) => {
                     let first = e.to_string().lines().next().unwrap_or_default().to_string();
                     eprintln!("hitex: GPU backend unavailable ({first}); falling back to the CPU backend");
@@ -216,13 +234,17 @@ impl AnyRenderer {
                 }
             },
         };
-        Ok(Self { backend, auto: choice == BackendChoice::Auto })
+        Ok(Self { backend, auto: choice == BackendChoice::Auto, note })
     }
-    /// Backend description.
+    /// Backend description, with why `auto` chose it where that is not obvious.
     pub fn name(&self) -> String {
-        match &self.backend {
+        let name = match &self.backend {
             Engine::Cpu(c) => hitex_render::Renderer::name(c),
             Engine::Gpu(g) => format!("gpu: {}", g.adapter()),
+        };
+        match (&self.note, &self.backend) {
+            (Some(n), Engine::Cpu(_)) => format!("{name}; {n}"),
+            _ => name,
         }
     }
     /// Runs `f` on the GPU or the CPU; a GPU failure under `auto` moves this
@@ -302,9 +324,42 @@ fn rayon_threads() -> usize {
     std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
 }
 
-/// Writes a frame as PNG.
+/// The image formats a rendered frame can be written in, named by the
+/// output's extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ImageOut {
+    /// `.png`: lossless RGBA.
+    Png,
+    /// `.jpg` / `.jpeg`: RGB at quality 92.
+    Jpeg,
+}
+
+/// The format an output image path names, or a refusal naming the accepted
+/// extensions (checked before any work, so a wrong name costs nothing).
+pub fn image_out(path: &Path) -> Result<ImageOut, CliError> {
+    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("png") => Ok(ImageOut::Png),
+        Some("jpg" | "jpeg") => Ok(ImageOut::Jpeg),
+        _ => Err(CliError::Input(format!(
+            "{}: an output image must end in .png, .jpg or .jpeg (the extension names the format)",
+            path.display()
+        ))),
+    }
+}
+
+/// Writes a frame in the format its extension names (PNG or JPEG), atomically.
 pub fn save(frame: &Frame, path: &Path) -> Result<(), CliError> {
-    hitex_io::save_png(path, frame.width, frame.height, &frame.rgba).map_err(CliError::from)
+    match image_out(path)? {
+        ImageOut::Png => hitex_io::save_png(path, frame.width, frame.height, &frame.rgba).map_err(CliError::from),
+        ImageOut::Jpeg => {
+            let rgb: Vec<u8> = frame.rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+            let mut buf = Vec::new();
+            image::codecs::jpeg::JpegEncoder::new_with_quality(&mut buf, 92)
+                .encode(&rgb, frame.width, frame.height, image::ExtendedColorType::Rgb8)
+                .map_err(|e| CliError::Internal(format!("{}: {e}", path.display())))?;
+            hitex_io::write_atomic(path, &buf).map_err(CliError::from)
+        }
+    }
 }
 
 fn run(cli: Cli) -> Result<(), CliError> {
@@ -320,6 +375,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
             demo::run(&out, backend.into(), size)
         }
         Command::Render { scene, output, size, backend, mode } => {
+            image_out(&output)?;
             let mut s = hitex_io::load_scene(&scene)?;
             if let Some(m) = mode {
                 s.mode = m.into();
@@ -366,6 +422,22 @@ fn run(cli: Cli) -> Result<(), CliError> {
 }
 
 fn main() -> ExitCode {
+    // `hitex … | head`: end quietly when the reader goes away, as every Unix
+    // tool does, instead of panicking inside println!
+    #[cfg(unix)]
+    // SAFETY: the first statement of main, before any thread starts; SIG_DFL
+    // is a valid disposition for SIGPIPE.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+    // Mesa's device-selection Vulkan layer connects to Wayland while the
+    // adapters are listed, and libwayland prints "error: XDG_RUNTIME_DIR is
+    // invalid" where no session exists, though nothing failed; hitex ranks
+    // adapters itself, so the layer is left out there.
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() && std::env::var_os("NODEVICE_SELECT").is_none() {
+        // SAFETY: still before any thread starts.
+        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
+    }
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,

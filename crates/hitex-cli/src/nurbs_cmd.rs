@@ -33,7 +33,7 @@ pub enum NurbsCommand {
         #[arg(long, default_value_t = 0)]
         patch: usize,
         /// Parameters U,V.
-        #[arg(long, value_parser = parse_uv)]
+        #[arg(long, value_parser = parse_uv, allow_hyphen_values = true)]
         uv: (f64, f64),
         /// Print JSON.
         #[arg(long)]
@@ -104,7 +104,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 10)]
     pub stripes: u32,
     /// Curvature mapped to full colour (default: from the model).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub range: Option<f32>,
     /// Draw patch boundaries over the display mode.
     #[arg(long)]
@@ -145,8 +145,14 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             if a.bands == 0 || a.stripes == 0 || a.bands > 1000 || a.stripes > 1000 {
                 return Err(CliError::Input("--bands and --stripes must be in 1..=1000".into()));
             }
-            if !a.turn.is_finite() || a.range.is_some_and(|r| !(r.is_finite() && r > 0.0)) {
-                return Err(CliError::Input("--turn must be finite and --range finite and positive".into()));
+            crate::image_out(&a.output)?;
+            if !a.turn.is_finite() {
+                return Err(CliError::Input(format!("--turn {} must be finite (degrees)", a.turn)));
+            }
+            if let Some(r) = a.range
+                && !(r.is_finite() && r > 0.0)
+            {
+                return Err(CliError::Input(format!("--range {r} must be finite and positive")));
             }
             let model = load_model(&a.model)?;
             let mut p = prepare(&model, a.density);
@@ -173,12 +179,12 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             }
             save(&f, &a.output)?;
             println!(
-                "wrote {} ({}x{}, {} patches, mode {:?}, {}) in {ms:.1} ms",
+                "wrote {} ({}x{}, {} patches, mode {}, {}) in {ms:.1} ms",
                 a.output.display(),
                 a.size.0,
                 a.size.1,
                 p.patch_count(),
-                a.mode,
+                p.mode.name(),
                 r.name()
             );
             if matches!(p.mode, NurbsMode::Gauss | NurbsMode::Mean) {
@@ -192,10 +198,10 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
         }
         NurbsCommand::Info { model } => {
             let m = load_model(&model)?;
-            println!("{}: {} patches", m.name, m.surfaces.len());
+            // the summary first, then one line per patch
             let mut degrees = std::collections::BTreeMap::new();
             let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-            for (k, s) in m.surfaces.iter().enumerate() {
+            for s in &m.surfaces {
                 let n = &s.surface;
                 *degrees.entry((n.degree_u, n.degree_v)).or_insert(0) += 1;
                 let (a, b) = n.bounds();
@@ -203,6 +209,20 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                     lo[t] = lo[t].min(a[t]);
                     hi[t] = hi[t].max(b[t]);
                 }
+            }
+            let trimmed = m.surfaces.iter().filter(|s| !s.trim.is_empty()).count();
+            println!("{}: {} patches, {trimmed} trimmed", m.name, m.surfaces.len());
+            let d: Vec<String> = degrees.iter().map(|((p, q), c)| format!("{p}×{q}: {c}")).collect();
+            println!("degrees: {}", d.join(", "));
+            println!("bounds of the control nets: min {lo:?} max {hi:?}");
+            for w in &m.warnings {
+                println!("warning: {w}");
+            }
+            for r in &m.repairs {
+                println!("repaired: {r}");
+            }
+            for (k, s) in m.surfaces.iter().enumerate() {
+                let n = &s.surface;
                 println!(
                     "  patch {k:>3}: degree {}×{}, {}×{} control points, {}×{} knots, {}, u {:?} v {:?}",
                     n.degree_u,
@@ -216,18 +236,14 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                     s.range.1
                 );
                 if !s.trim.is_empty() {
-                    let pts: usize = s.trim.iter().map(Vec::len).sum();
-                    println!("             trimmed by {} loops ({pts} points in parameter space)", s.trim.len());
+                    let sizes: Vec<String> = s.trim.iter().map(|l| l.len().to_string()).collect();
+                    let loops = if s.trim.len() == 1 { "loop" } else { "loops" };
+                    println!(
+                        "             trimmed by {} {loops} of {} points in parameter space",
+                        s.trim.len(),
+                        sizes.join(" / ")
+                    );
                 }
-            }
-            let d: Vec<String> = degrees.iter().map(|((p, q), c)| format!("{p}×{q}: {c}")).collect();
-            println!("degrees: {}", d.join(", "));
-            println!("bounds of the control nets: min {lo:?} max {hi:?}");
-            for w in &m.warnings {
-                println!("warning: {w}");
-            }
-            for r in &m.repairs {
-                println!("repaired: {r}");
             }
             Ok(())
         }

@@ -25,7 +25,7 @@ pub enum TerrainCommand {
     /// Maps of each MIP level the active area needs (eq. (5)–(7)) and their memory.
     ActiveArea {
         /// Horizontal field of view, degrees.
-        #[arg(long, default_value_t = 45.0)]
+        #[arg(long, default_value_t = 45.0, allow_negative_numbers = true)]
         fov: f64,
         /// Pixels per scanline.
         #[arg(long, default_value_t = 1024)]
@@ -59,22 +59,22 @@ pub struct SpansArgs {
     #[arg(long, default_value_t = 1024)]
     pub texture_size: u32,
     /// Eye height above the ground in level-0 texels (default: 0.3 × the texture's longer side).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub altitude: Option<f64>,
     /// Pitch below the horizon, degrees.
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
     pub pitch: f64,
     /// Heading, degrees clockwise from north.
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
     pub heading: f64,
     /// Horizontal field of view, degrees.
-    #[arg(long, default_value_t = 45.0)]
+    #[arg(long, default_value_t = 45.0, allow_negative_numbers = true)]
     pub fov: f64,
     /// Frames along the straight path.
     #[arg(long, default_value_t = 8)]
     pub frames: u32,
     /// Ground distance flown per frame in texels (default: altitude / 4).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub step: Option<f64>,
     /// Frame size, WIDTHxHEIGHT.
     #[arg(long, value_parser = parse_size, default_value = "1024x768")]
@@ -98,16 +98,16 @@ pub struct RenderArgs {
     #[arg(long, default_value = "3,2,1")]
     pub bands: String,
     /// Vertical exaggeration.
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
     pub exaggeration: f32,
     /// Camera height above the mean terrain, metres.
-    #[arg(long, default_value_t = 6000.0)]
+    #[arg(long, default_value_t = 6000.0, allow_negative_numbers = true)]
     pub altitude: f32,
     /// Camera pitch below the horizon, degrees.
-    #[arg(long, default_value_t = 40.0)]
+    #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
     pub pitch: f32,
     /// Camera heading, degrees clockwise from north.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub heading: f32,
     /// Output PNG.
     #[arg(short, long)]
@@ -245,9 +245,13 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
             return Err(CliError::Input(format!("{name} must be finite")));
         }
     }
-    if !(1.0..=89.0).contains(&a.pitch) || a.altitude <= 0.0 {
-        return Err(CliError::Input("--pitch must be in 1..=89 degrees and --altitude positive".into()));
+    if !(1.0..=89.0).contains(&a.pitch) {
+        return Err(CliError::Input(format!("--pitch {} must be in 1..=89 degrees below the horizon", a.pitch)));
     }
+    if a.altitude <= 0.0 {
+        return Err(CliError::Input(format!("--altitude {} must be positive", a.altitude)));
+    }
+    crate::image_out(&a.output)?;
     let bands = parse_band_list(&a.bands)?;
     let mut dem = load_elevation(&a.dem)?;
     let filled = fill_holes(&mut dem);
@@ -386,17 +390,24 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
             return Err(CliError::Input(format!("{name} must be finite")));
         }
     }
-    if !(1.0..=90.0).contains(&a.pitch) || !(1.0..=170.0).contains(&a.fov) {
-        return Err(CliError::Input("--pitch must be in 1..=90 and --fov in 1..=170 degrees".into()));
+    if !(1.0..=90.0).contains(&a.pitch) {
+        return Err(CliError::Input(format!("--pitch {} must be in 1..=90 degrees below the horizon", a.pitch)));
     }
+    if !(1.0..=170.0).contains(&a.fov) {
+        return Err(CliError::Input(format!("--fov {} must be in 1..=170 degrees", a.fov)));
+    }
+    crate::image_out(&a.output)?;
     if a.frames == 0 || a.frames > 10_000 {
         return Err(CliError::Input("--frames must be in 1..=10000".into()));
     }
     let (pyr, wrap, name) = spans_texture(&a)?;
     let altitude = a.altitude.unwrap_or(0.3 * pyr.width().max(pyr.height()) as f64);
     let step = a.step.unwrap_or(altitude / 4.0);
-    if !altitude.is_finite() || altitude <= 0.0 || !step.is_finite() {
-        return Err(CliError::Input("--altitude must be positive and --step finite".into()));
+    if !altitude.is_finite() || altitude <= 0.0 {
+        return Err(CliError::Input(format!("--altitude {altitude} must be positive")));
+    }
+    if !step.is_finite() {
+        return Err(CliError::Input(format!("--step {step} must be finite")));
     }
     let _ = pyr.linear_level(0); // decode once, outside the timings
     let (w, h) = a.size;
@@ -537,7 +548,7 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
             }
         }
     }
-    hitex_io::save_png(&a.output, w * 4, h, &out)?;
+    crate::save(&hitex_render::Frame { width: w * 4, height: h, rgba: out }, &a.output)?;
     println!("wrote {} (trilinear | span 3x3 | span 4x4 | |trilinear − span 3x3| × 8)", a.output.display());
     Ok(())
 }

@@ -38,6 +38,75 @@ pub struct BuildArgs {
     /// This process's share of the work, INDEX/COUNT (e.g. 0/4).
     #[arg(long, value_parser = parse_shard, default_value = "0/1")]
     pub shard: (u32, u32),
+    /// Refuse a build that would write more maps than this (in this shard).
+    #[arg(long, default_value_t = DEFAULT_MAX_MAPS)]
+    pub max_maps: u64,
+    /// Build even when the estimated size exceeds the free space (e.g. on a
+    /// compressing file system).
+    #[arg(long)]
+    pub ignore_free_space: bool,
+}
+
+/// The default cap on the maps one build writes (about 4 M files, a
+/// 500 000 × 500 000-texel source).
+pub const DEFAULT_MAX_MAPS: u64 = 1 << 22;
+
+/// Estimates a build's maps and bytes before any is written (the PNG size of a
+/// sample map times the map count, +10 % for the coarser levels' variation)
+/// and refuses it beyond `--max-maps` or the free space of the output's file
+/// system.
+fn check_build_size(a: &BuildArgs, meta: &StoreMeta, source: &dyn TileSource) -> Result<(), CliError> {
+    let maps = meta.total_tiles().div_ceil(a.shard.1 as u64);
+    let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+    if maps > a.max_maps {
+        return Err(CliError::Input(format!(
+            "{}x{} texels make {maps} maps in {} levels (shard {}/{}), beyond --max-maps {}: raise the cap if that is meant, or split the build with --shard",
+            meta.width, meta.height, meta.levels, a.shard.0, a.shard.1, a.max_maps
+        )));
+    }
+    let per_map = hitex_io::gst::sample_map_bytes(source)?;
+    let need = maps.saturating_mul(per_map + per_map / 10 + 512);
+    if !a.ignore_free_space
+        && let Some(free) = free_bytes(&a.output)
+        && need > free
+    {
+        return Err(CliError::Input(format!(
+            "{}: the store needs about {:.1} GiB ({maps} maps of about {} KiB), {:.1} GiB are free",
+            a.output.display(),
+            gib(need),
+            per_map / 1024,
+            gib(free)
+        )));
+    }
+    if maps > 10_000 {
+        eprintln!("hitex: {maps} maps in {} levels, about {:.1} GiB", meta.levels, gib(need));
+    }
+    Ok(())
+}
+
+/// Free bytes for an unprivileged writer on the file system that holds `p`
+/// (or its nearest existing ancestor).
+#[cfg(unix)]
+fn free_bytes(p: &Path) -> Option<u64> {
+    use std::os::unix::ffi::OsStrExt;
+    let mut q = p.to_path_buf();
+    while !q.exists() {
+        q = match q.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => std::path::PathBuf::from("."),
+        };
+    }
+    let c = std::ffi::CString::new(q.as_os_str().as_bytes()).ok()?;
+    // SAFETY: `c` is NUL-terminated; `s` is a plain-data out-parameter.
+    let mut s: libc::statvfs = unsafe { std::mem::zeroed() };
+    let ok = unsafe { libc::statvfs(c.as_ptr(), &mut s) } == 0;
+    #[allow(clippy::unnecessary_cast)]
+    ok.then(|| s.f_bavail as u64 * s.f_frsize as u64)
+}
+
+#[cfg(not(unix))]
+fn free_bytes(_: &Path) -> Option<u64> {
+    None
 }
 
 fn parse_big_size(s: &str) -> Result<(u32, u32), String> {
@@ -104,6 +173,7 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
         }
         (None, None) => return Err(CliError::Input("give --image IMAGE.tif or --procedural WIDTHxHEIGHT".into())),
     };
+    check_build_size(&a, &meta, source.as_ref())?;
     let pb = ProgressBar::new(meta.total_tiles());
     pb.set_style(
         ProgressStyle::with_template("{prefix:>8} [{bar:30}] {pos}/{len} maps {elapsed} (eta {eta})")
@@ -155,13 +225,13 @@ pub struct FlyArgs {
     #[arg(long, default_value_t = 400)]
     pub budget: usize,
     /// Orbit altitude in metres (default: a tenth of the extent).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub altitude: Option<f64>,
     /// Orbit pitch from the nadir, degrees.
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = 60.0, allow_negative_numbers = true)]
     pub pitch: f64,
     /// Horizontal field of view, degrees.
-    #[arg(long, default_value_t = 45.0)]
+    #[arg(long, default_value_t = 45.0, allow_negative_numbers = true)]
     pub fov: f64,
     /// Render each frame only after its maps have loaded (deterministic frames).
     #[arg(long)]
@@ -180,7 +250,7 @@ pub struct FlyArgs {
     #[arg(long, value_enum, default_value_t = SamplerArg::Trilinear)]
     pub sampler: SamplerArg,
     /// Heights × this over the relief.
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
     pub exaggeration: f64,
     /// No aircraft ahead of the camera (relief only).
     #[arg(long)]
@@ -368,6 +438,14 @@ fn load_path(path: &Path) -> Result<Vec<PathKey>, CliError> {
                 k.altitude
             )));
         }
+        if !(0.0..=1.0).contains(&k.x) || !(0.0..=1.0).contains(&k.y) {
+            return Err(CliError::Input(format!(
+                "{}: key[{i}] at x = {}, y = {} is outside the store: x and y are fractions of its extent, in 0..=1",
+                path.display(),
+                k.x,
+                k.y
+            )));
+        }
         if !(0.0..90.0).contains(&k.pitch) {
             return Err(CliError::Input(format!(
                 "{}: key[{i}].pitch = {}° must be in [0, 90) from the nadir (90 looks at the horizon)",
@@ -442,9 +520,16 @@ pub fn frame_setup(
 
 /// `hitex terrain fly`.
 pub fn fly(a: FlyArgs) -> Result<(), CliError> {
+    if a.frames == 0 || a.frames > 100_000 {
+        return Err(CliError::Input(format!("--frames {} must be in 1..=100000", a.frames)));
+    }
+    if a.budget == 0 {
+        return Err(CliError::Input(
+            "--budget 0: the cache must hold at least one map (the paper's setting holds 324)".into(),
+        ));
+    }
     let meta = open_store(&a.store)?;
-    std::fs::create_dir_all(&a.output)
-        .map_err(|e| CliError::Internal(format!("cannot create {}: {e}", a.output.display())))?;
+    hitex_io::create_output_dir(&a.output)?;
     let (w, h) = a.size;
     let extent = DVec2::new(meta.width as f64, meta.height as f64);
     let metres = meta.pixel[0];

@@ -151,8 +151,31 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
     ));
     v.push(c(
         "output image",
-        "folder does not exist",
-        &["btf", "render", "knit", "--size", "8x8", "-o", &s(&d.join("no/such/dir/x.png")), "--backend", "cpu"],
+        "a file on its path where a folder must be",
+        &["btf", "render", "knit", "--size", "8x8", "-o", &s(&d.join("ok.hbtf/x.png")), "--backend", "cpu"],
+    ));
+    v.push(c(
+        "output image",
+        "an extension that names no image format",
+        &["btf", "render", "knit", "--size", "8x8", "-o", &s(&d.join("x.txt")), "--backend", "cpu"],
+    ));
+    v.push(c("btf render", "--repeats 0", &["btf", "render", "knit", "--repeats", "0", "-o", &out]));
+    let nonempty = d.join("nonempty");
+    std::fs::create_dir_all(&nonempty).unwrap();
+    std::fs::write(nonempty.join("keep.txt"), b"mine").unwrap();
+    v.push(c("btf export", "into a folder that is not empty", &["btf", "export", &hb, "-o", &s(&nonempty)]));
+    v.push(c(
+        "terrain build",
+        "--procedural 10000000x10000000 (beyond --max-maps)",
+        &["terrain", "build", "--procedural", "10000000x10000000", "-o", &s(&d.join("huge"))],
+    ));
+    v.push(c("terrain fly", "--frames 0", &["terrain", "fly", &s(&flat), "--frames", "0", "-o", &s(&d.join("f0"))]));
+    v.push(c("terrain fly", "--budget 0", &["terrain", "fly", &s(&flat), "--budget", "0", "-o", &s(&d.join("f0"))]));
+    let outside = w("outside.toml", b"[[key]]\nt = 0\nx = 1.5\ny = 0.5\naltitude = 100\npitch = 30\nheading = 0\n");
+    v.push(c(
+        "flight path",
+        "a key outside the store",
+        &["terrain", "fly", &s(&flat), "--path", &outside, "-o", &s(&d.join("f0"))],
     ));
     // faults of the disk and the GPU
     let scene = w("scene.toml", hitex_core::scene::SHOWCASE_TOML.as_bytes());

@@ -398,7 +398,7 @@ fn btf_synth_info_index_render_export_import() {
     }
     // image set round trip
     let set = d.join("set");
-    let o = hitex(&["btf", "export", hs, set.to_str().unwrap(), "--convention", "ubo"]);
+    let o = hitex(&["btf", "export", hs, "-o", set.to_str().unwrap(), "--convention", "ubo"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let back = d.join("back.hbtf");
     let o = hitex(&["btf", "import", set.to_str().unwrap(), "-o", back.to_str().unwrap()]);

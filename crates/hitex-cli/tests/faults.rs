@@ -67,7 +67,14 @@ fn full_disk_while_writing_a_btf_file() {
 fn full_disk_while_building_a_store_leaves_no_store_that_opens() {
     let Some(fs) = Tmpfs::mount("fault-full-store", 192) else { return };
     let store = fs.dir.join("store");
+    // refused up front: the estimate exceeds the free space
     let o = hitex(&["terrain", "build", "--procedural", "2048x2048", "-o", store.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
+    assert!(error_lines(&o).iter().any(|l| l.contains("GiB are free")), "{o:?}");
+    assert!(!store.exists(), "a refused build wrote something");
+    // past the estimate, the disk fills during the build
+    let o =
+        hitex(&["terrain", "build", "--procedural", "2048x2048", "--ignore-free-space", "-o", store.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1), "{o:?}");
     let e = error_lines(&o);
     assert!(e.iter().any(|l| l.contains("No space left on device")), "{e:?}");
@@ -136,7 +143,7 @@ fn no_adapter_falls_back_under_auto_and_fails_clearly_under_gpu() {
     );
     assert!(out.is_file());
     let o = hitex_env(&[&args[..], &["--backend", "gpu"]].concat(), &env, Duration::from_secs(120));
-    assert_eq!(o.status.code(), Some(1), "{o:?}");
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
     let e = error_lines(&o);
     assert!(e.len() == 1 && e[0].contains("no GPU adapter found") && e[0].contains("mesa-vulkan-drivers"), "{e:?}");
 }
@@ -149,7 +156,8 @@ fn lost_device_hands_the_frame_to_the_cpu() {
     let d = tmp("fault-lost");
     let scene = scene(&d);
     let (lost, cpu) = (d.join("lost.png"), d.join("cpu.png"));
-    let env = [("HITEX_GPU_FAULT", "device-lost")];
+    // auto takes a software adapter only when told to
+    let env = [("HITEX_GPU_FAULT", "device-lost"), ("HITEX_SOFTWARE_GPU", "1")];
     let limit = Duration::from_secs(180);
     let o = hitex_env(&["render", &scene, "-o", lost.to_str().unwrap(), "--size", "96x64"], &env, limit);
     assert!(o.status.success(), "{o:?}");

@@ -117,19 +117,24 @@ pub(crate) fn write_atomic_with(
 ) -> Result<(), IoError> {
     use std::sync::atomic::{AtomicU64, Ordering};
     static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let werr = |m: String| IoError::Write { path: path.to_path_buf(), message: m };
+    let werr = |m: String| IoError::Destination { path: path.to_path_buf(), message: m };
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     };
     let name = path.file_name().ok_or_else(|| werr("not a file path".into()))?;
+    crate::image_io::create_output_dir(&dir)?;
     let tmp = dir.join(format!(
         ".{}.{}-{}.tmp",
         name.to_string_lossy(),
         std::process::id(),
         COUNTER.fetch_add(1, Ordering::Relaxed)
     ));
-    let file = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp).map_err(|e| werr(e.to_string()))?;
+    let file = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&tmp)
+        .map_err(|e| crate::image_io::output_error(path, &e))?;
     let result = (|| -> std::io::Result<()> {
         let mut w = std::io::BufWriter::with_capacity(CHUNK, &file);
         write(&mut w)?;
@@ -141,7 +146,7 @@ pub(crate) fn write_atomic_with(
     drop(file);
     if let Err(e) = result {
         let _ = std::fs::remove_file(&tmp);
-        return Err(werr(e.to_string()));
+        return Err(crate::image_io::output_error(path, &e));
     }
     Ok(())
 }
@@ -544,9 +549,15 @@ mod tests {
     fn btf_file_failed_writes_leave_nothing_behind() {
         let d = tmpdir("nowrite");
         let btf = small_btf(6);
-        // missing folder
-        let e = write_hbtf(&d.join("no/such/dir/x.hbtf"), &btf).unwrap_err().to_string();
-        assert!(e.contains("x.hbtf"), "{e}");
+        // a file where a folder must be
+        std::fs::write(d.join("plain"), b"x").unwrap();
+        let e = write_hbtf(&d.join("plain/dir/x.hbtf"), &btf).unwrap_err();
+        assert!(matches!(e, IoError::Destination { .. }), "{e}");
+        assert!(e.to_string().contains("plain"), "{e}");
+        std::fs::remove_file(d.join("plain")).unwrap();
+        // missing folders are created
+        write_hbtf(&d.join("new/dir/x.hbtf"), &btf).unwrap();
+        std::fs::remove_dir_all(d.join("new")).unwrap();
         // the target is a folder: the rename fails after the data was written
         std::fs::create_dir(d.join("taken.hbtf")).unwrap();
         let e = write_hbtf(&d.join("taken.hbtf"), &btf).unwrap_err().to_string();

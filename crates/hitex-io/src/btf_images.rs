@@ -781,19 +781,31 @@ pub fn import_image_set(
 /// A grid whose angles round to the same integer degree is refused (the
 /// names would collide).
 pub fn export_image_set(btf: &Btf, dir: &Path, convention: Convention) -> Result<usize, IoError> {
-    let werr = |m: String| IoError::Write { path: dir.to_path_buf(), message: m };
+    export_image_set_with(btf, dir, convention, &mut |_, _| {})
+}
+
+/// [`export_image_set`], calling `progress(done, total)` after each image.
+pub fn export_image_set_with(
+    btf: &Btf,
+    dir: &Path,
+    convention: Convention,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<usize, IoError> {
     let g = btf.grid();
     let theta: Vec<u32> = g.theta_deg().iter().map(|t| t.round() as u32).collect();
     let phi: Vec<u32> = (0..g.phi_count()).map(|j| g.phi_deg(j).round() as u32 % 360).collect();
     for (what, list) in [("polar", &theta), ("azimuth", &phi)] {
         let unique: BTreeSet<u32> = list.iter().copied().collect();
         if unique.len() != list.len() {
-            return Err(werr(format!(
-                "two {what} angles of the grid round to the same integer degree ({list:?}); the file names would collide"
-            )));
+            return Err(IoError::Format {
+                path: dir.to_path_buf(),
+                message: format!(
+                    "two {what} angles of the grid round to the same integer degree ({list:?}); the file names would collide"
+                ),
+            });
         }
     }
-    std::fs::create_dir_all(dir).map_err(|e| werr(e.to_string()))?;
+    crate::image_io::create_output_dir(dir)?;
     let (w, h) = (btf.width(), btf.height());
     let pc = g.phi_count();
     let mut count = 0;
@@ -810,6 +822,7 @@ pub fn export_image_set(btf: &Btf, dir: &Path, convention: Convention) -> Result
             }
             write_atomic(&path, &buf)?;
             count += 1;
+            progress(count, g.directions() * g.directions());
         }
     }
     Ok(count)

@@ -357,7 +357,7 @@ pub fn build_store(
             meta.width, meta.height
         ))));
     }
-    std::fs::create_dir_all(out).map_err(|e| werr(out, e.to_string()))?;
+    crate::image_io::create_output_dir(out)?;
     // the description is written last: a build that fails part-way leaves no store that opens as complete
     let described = out.join("metadata.json");
     match std::fs::remove_file(&described) {
@@ -438,6 +438,21 @@ fn build_level(
 }
 
 /// Map (x, y) of the finest level: the source window, transparent outside.
+/// The PNG size of the finest map at the source's centre: a sample for
+/// estimating a whole store's disk need before building it.
+pub fn sample_map_bytes(src: &dyn TileSource) -> Result<u64, IoError> {
+    let (w, h) = src.size();
+    let rgba = finest_tile(src, (w / 2) / TILE, (h / 2) / TILE)?;
+    let mut buf = Vec::new();
+    {
+        use image::ImageEncoder;
+        image::codecs::png::PngEncoder::new(&mut buf)
+            .write_image(&rgba, TILE, TILE, image::ExtendedColorType::Rgba8)
+            .map_err(|e| IoError::Core(hitex_core::CoreError::InvalidImage(format!("{}: {e}", src.describe()))))?;
+    }
+    Ok(buf.len() as u64)
+}
+
 fn finest_tile(src: &dyn TileSource, x: u32, y: u32) -> Result<Vec<u8>, IoError> {
     let (w, h) = src.size();
     let (x0, y0) = (x * TILE, y * TILE);

@@ -438,9 +438,22 @@ pub(crate) fn sample_curve_2d(
     samples: usize,
 ) -> Vec<[f64; 2]> {
     let n = pw.len() - 1;
-    (0..=samples)
-        .map(|s| {
-            let t = t0 + (t1 - t0) * s as f64 / samples as f64;
+    // a degree-1 curve is exactly the polyline of its vertices: read it back
+    // vertex for vertex (t0, the knots strictly between, t1) instead of
+    // resampling, so that polygonal trims round-trip exactly
+    let ts: Vec<f64> = if m == 1 {
+        let (lo, hi) = (t0.min(t1), t0.max(t1));
+        let mut inner: Vec<f64> = knots.iter().copied().filter(|&t| lo < t && t < hi).collect();
+        inner.dedup();
+        if t1 < t0 {
+            inner.reverse();
+        }
+        std::iter::once(t0).chain(inner).chain(std::iter::once(t1)).collect()
+    } else {
+        (0..=samples).map(|s| t0 + (t1 - t0) * s as f64 / samples as f64).collect()
+    };
+    ts.into_iter()
+        .map(|t| {
             let span = hitex_core::nurbs::find_span(n, m, t, knots);
             let mut b = [0.0; hitex_core::nurbs::MAX_DEGREE + 1];
             hitex_core::nurbs::basis_funs(span, t, m, knots, &mut b);

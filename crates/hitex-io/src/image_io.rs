@@ -54,15 +54,48 @@ pub fn decode_image(bytes: &[u8], path: &Path, color_space: ColorSpace) -> Resul
     Image::new(w, h, color_space, texels).map_err(|e| fmt(e.to_string()))
 }
 
+/// Classifies a failed output operation: a path that cannot hold a file
+/// (through a file, a missing device, a refused name) is the user's
+/// [`IoError::Destination`]; everything else (disk full, read-only file
+/// system, I/O error) an [`IoError::Write`].
+pub fn output_error(path: &Path, e: &std::io::Error) -> IoError {
+    use std::io::ErrorKind as K;
+    let message = e.to_string();
+    match e.kind() {
+        K::NotFound | K::NotADirectory | K::IsADirectory | K::InvalidFilename | K::InvalidInput => {
+            IoError::Destination { path: path.to_path_buf(), message }
+        }
+        _ => IoError::Write { path: path.to_path_buf(), message },
+    }
+}
+
+/// Creates `dir` and its missing parents (every output of hitex does this,
+/// files and folders alike); a path that cannot be a folder is the user's
+/// [`IoError::Destination`].
+pub fn create_output_dir(dir: &Path) -> Result<(), IoError> {
+    if dir.as_os_str().is_empty() || dir.is_dir() {
+        return Ok(());
+    }
+    if let Some(file) = dir.ancestors().find(|a| a.exists() && !a.is_dir()) {
+        return Err(IoError::Destination {
+            path: dir.to_path_buf(),
+            message: format!("{} is a file, not a folder", file.display()),
+        });
+    }
+    std::fs::create_dir_all(dir).map_err(|e| output_error(dir, &e))
+}
+
 /// Writes `bytes` to `path` through a temporary file in the same folder and a
 /// rename, so that an interrupted or failed write leaves no partial file.
+/// Missing folders on the way are created.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
-    let werr = |m: String| IoError::Write { path: path.to_path_buf(), message: m };
+    let werr = |m: String| IoError::Destination { path: path.to_path_buf(), message: m };
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => std::path::PathBuf::from("."),
     };
     let name = path.file_name().ok_or_else(|| werr("not a file path".into()))?;
+    create_output_dir(&dir)?;
     let tmp = dir.join(format!(".{}.tmp{}", name.to_string_lossy(), std::process::id()));
     let result = (|| -> std::io::Result<()> {
         let mut f = std::fs::File::create(&tmp)?;
@@ -72,7 +105,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
     })();
     if let Err(e) = result {
         let _ = std::fs::remove_file(&tmp);
-        return Err(werr(e.to_string()));
+        return Err(output_error(path, &e));
     }
     Ok(())
 }
@@ -150,10 +183,13 @@ mod tests {
     }
 
     #[test]
-    fn write_into_missing_folder_fails_cleanly() {
+    fn missing_folders_are_created_and_a_file_on_the_path_is_the_users_error() {
         let d = tmpdir("nowrite");
         let p = d.join("no/such/dir/x.png");
-        let e = save_png(&p, 1, 1, &[0, 0, 0, 255]).unwrap_err().to_string();
-        assert!(e.contains("x.png"), "{e}");
+        save_png(&p, 1, 1, &[0, 0, 0, 255]).unwrap();
+        assert!(p.is_file());
+        let e = save_png(&p.join("y.png"), 1, 1, &[0, 0, 0, 255]).unwrap_err();
+        assert!(matches!(e, IoError::Destination { .. }), "{e}");
+        assert!(e.to_string().contains("x.png is a file"), "{e}");
     }
 }

@@ -22,7 +22,7 @@ pub mod obj_freeform;
 pub mod scene_file;
 
 pub use iges::{IgesModel, IgesSurface, load_iges, parse_iges};
-pub use image_io::{decode_image, load_image, save_png, write_atomic};
+pub use image_io::{create_output_dir, decode_image, load_image, output_error, save_png, write_atomic};
 pub use obj::load_obj;
 pub use scene_file::{FileLoader, load_scene};
 
@@ -51,6 +51,16 @@ pub enum IoError {
     /// An output file could not be written.
     #[error("cannot write {path}: {message}")]
     Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        message: String,
+    },
+    /// The output location cannot hold a file: a path through a file, a
+    /// missing device, a name the file system refuses (the user's path is
+    /// wrong, as opposed to a write that failed).
+    #[error("cannot write {path}: {message}")]
+    Destination {
         /// The file.
         path: PathBuf,
         /// Why.

@@ -119,7 +119,9 @@ pub fn to_nurbs_json(surfaces: &[IgesSurface]) -> String {
     serde_json::to_string(&f).unwrap_or_default()
 }
 
-/// IGES 5.3 text holding one entity 128 per surface (full-precision reals).
+/// IGES 5.3 text holding one entity 128 per surface (full-precision reals)
+/// and, for trimmed surfaces, its loops as degree-1 parameter-space curves
+/// (126) on the surface (142) bounding it (144), which read back exactly.
 pub fn to_iges(surfaces: &[IgesSurface], description: &str) -> String {
     fn lines_of(data: &str, width: usize) -> Vec<String> {
         // break at delimiters so that no number is split
@@ -142,12 +144,12 @@ pub fn to_iges(surfaces: &[IgesSurface], description: &str) -> String {
     for (i, l) in glines.iter().enumerate() {
         s += &format!("{l:<72}G{:>7}\n", i + 1);
     }
-    let mut dir = String::new();
-    let mut par = String::new();
-    let mut pline = 1usize;
-    for (k, p) in surfaces.iter().enumerate() {
+    // entities in file order: (type, record, status); entity i has directory
+    // sequence number 2i + 1
+    let mut ents: Vec<(u32, String, &str)> = Vec::new();
+    let de = |i: usize| 2 * i + 1;
+    for p in surfaces {
         let n = &p.surface;
-        let de = 2 * k + 1;
         let mut fields = vec![
             "128".to_string(),
             (n.count_u - 1).to_string(),
@@ -167,15 +169,59 @@ pub fn to_iges(surfaces: &[IgesSurface], description: &str) -> String {
             fields.extend([0, 1, 2].map(|t| format!("{:?}", c[t])));
         }
         fields.extend([p.range.0.0, p.range.0.1, p.range.1.0, p.range.1.1].map(|x| format!("{x:?}")));
-        let record = fields.join(",") + ";";
-        let lines = lines_of(&record, 64);
+        let surface = ents.len();
+        let trimmed = p.trim.iter().any(|l| l.len() >= 2);
+        ents.push((128, fields.join(",") + ";", if trimmed { "00010000" } else { "00000000" }));
+        if !trimmed {
+            continue;
+        }
+        // each loop: a degree-1 B-spline (126) through its vertices at
+        // t = 0, 1, …, K in parameter space, on the surface (142)
+        let mut curves = Vec::new();
+        for l in p.trim.iter().filter(|l| l.len() >= 2) {
+            let k = l.len() - 1;
+            let closed = l.first() == l.last();
+            let mut f = vec![
+                "126".to_string(),
+                k.to_string(),
+                "1".into(),
+                "1".into(),
+                (if closed { "1" } else { "0" }).into(),
+                "1".into(),
+                "0".into(),
+            ];
+            f.push("0.0".into());
+            f.extend((0..=k).map(|t| format!("{:?}", t as f64)));
+            f.push(format!("{:?}", k as f64));
+            f.extend((0..=k).map(|_| "1.0".to_string()));
+            for q in l {
+                f.extend([format!("{:?}", q[0]), format!("{:?}", q[1]), "0.0".into()]);
+            }
+            f.extend(["0.0".to_string(), format!("{:?}", k as f64), "0.0".into(), "0.0".into(), "1.0".into()]);
+            let c126 = ents.len();
+            ents.push((126, f.join(",") + ";", "00010500"));
+            let c142 = ents.len();
+            ents.push((142, format!("142,1,{},{},0,1;", de(surface), de(c126)), "00010000"));
+            curves.push(c142);
+        }
+        let inner: Vec<String> = curves[1..].iter().map(|&c| de(c).to_string()).collect();
+        let mut rec = format!("144,{},1,{},{}", de(surface), curves.len() - 1, de(curves[0]));
+        for i in inner {
+            rec += &format!(",{i}");
+        }
+        ents.push((144, rec + ";", "00000000"));
+    }
+    let mut dir = String::new();
+    let mut par = String::new();
+    let mut pline = 1usize;
+    for (i, (ty, record, status)) in ents.iter().enumerate() {
+        let lines = lines_of(record, 64);
+        let d = de(i);
+        dir +=
+            &format!("{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}D{:>7}\n", ty, pline, 0, 1, 0, 0, 0, 0, status, d);
         dir += &format!(
             "{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}D{:>7}\n",
-            128, pline, 0, 1, 0, 0, 0, 0, "00010000", de
-        );
-        dir += &format!(
-            "{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}D{:>7}\n",
-            128,
+            ty,
             0,
             0,
             lines.len(),
@@ -184,20 +230,16 @@ pub fn to_iges(surfaces: &[IgesSurface], description: &str) -> String {
             "",
             "",
             0,
-            de + 1
+            d + 1
         );
         for l in lines {
-            par += &format!("{l:<64}{de:>8}P{pline:>7}\n");
+            par += &format!("{l:<64}{d:>8}P{pline:>7}\n");
             pline += 1;
         }
     }
     s += &dir;
     s += &par;
-    s += &format!(
-        "{:<72}T{:>7}\n",
-        format!("S{:>7}G{:>7}D{:>7}P{:>7}", 1, glines.len(), 2 * surfaces.len(), pline - 1),
-        1
-    );
+    s += &format!("{:<72}T{:>7}\n", format!("S{:>7}G{:>7}D{:>7}P{:>7}", 1, glines.len(), 2 * ents.len(), pline - 1), 1);
     s
 }
 
@@ -238,6 +280,36 @@ mod tests {
         assert_eq!(m.surfaces.len(), a.len());
         for (x, y) in a.iter().zip(&m.surfaces) {
             assert_eq!(x.surface, y.surface);
+        }
+    }
+
+    #[test]
+    fn iges_round_trip_keeps_trims_exactly() {
+        // outer loops and holes, and a loop with hundreds of vertices
+        let mut a = crate::iges::load_iges(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/holed-square.igs"))
+            .unwrap()
+            .surfaces;
+        assert!(a.iter().any(|s| s.trim.len() >= 2), "the fixture has holes");
+        let mut fine = a[0].clone();
+        let ((u0, u1), (v0, v1)) = fine.range;
+        let ring: Vec<[f64; 2]> = (0..=457)
+            .map(|i| {
+                let t = i as f64 / 457.0 * std::f64::consts::TAU;
+                let (c, s) = if i == 457 { (1.0, 0.0) } else { (t.cos(), t.sin()) };
+                [u0 + (u1 - u0) * (0.5 + 0.4 * c), v0 + (v1 - v0) * (0.5 + 0.4 * s)]
+            })
+            .collect();
+        fine.trim = vec![ring];
+        a.push(fine);
+        a.extend(teapot().into_iter().take(2));
+        let m = parse_iges(&to_iges(&a, "trims"), "rt.igs").unwrap();
+        assert!(m.repairs.is_empty(), "{:?}", m.repairs);
+        assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+        assert_eq!(m.surfaces.len(), a.len());
+        for (x, y) in a.iter().zip(&m.surfaces) {
+            assert_eq!(x.surface, y.surface);
+            assert_eq!(x.range, y.range);
+            assert_eq!(x.trim, y.trim);
         }
     }
 

@@ -61,6 +61,11 @@ impl NurbsMode {
         ("vertex-normals", NurbsMode::VertexNormals),
         ("normal", NurbsMode::Normal),
     ];
+    /// The CLI and scene-file name of the mode.
+    pub fn name(self) -> &'static str {
+        Self::ALL.iter().find(|(_, m)| *m == self).map_or("shaded", |(n, _)| n)
+    }
+
     /// Index used by both fragment programs.
     pub fn index(self) -> u32 {
         match self {

@@ -5,9 +5,25 @@ use std::fmt::Write;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-/// A wgpu instance honouring `WGPU_BACKEND` and the other wgpu environment variables.
+/// A wgpu instance over every backend, honouring `WGPU_BACKEND` and the
+/// other wgpu environment variables.
 pub fn instance() -> wgpu::Instance {
-    wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
+    instance_for(wgpu::Backends::all())
+}
+
+/// A wgpu instance over `backends` (`WGPU_BACKEND` overrides them). Leaving
+/// GL out avoids initialising EGL, whose probe prints "error:" lines on a
+/// machine without a display even when nothing fails.
+pub fn instance_for(backends: wgpu::Backends) -> wgpu::Instance {
+    let mut d = wgpu::InstanceDescriptor::new_without_display_handle();
+    d.backends = backends;
+    wgpu::Instance::new(d.with_env())
+}
+
+/// Whether an adapter is a hardware GPU (not a software rasterizer such as
+/// lavapipe/llvmpipe or SwiftShader).
+pub fn is_hardware(info: &wgpu::AdapterInfo) -> bool {
+    info.device_type != wgpu::DeviceType::Cpu
 }
 
 /// Ranks adapters: real GPUs first, then software Vulkan (lavapipe), then GL.
@@ -31,6 +47,16 @@ pub fn adapters(instance: &wgpu::Instance) -> Vec<wgpu::Adapter> {
     let mut list = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
     list.sort_by_key(|a| rank(&a.get_info()));
     list
+}
+
+/// The adapters of the primary backends (Vulkan, Metal, DX12), best first;
+/// GL only when those find none (or `WGPU_BACKEND` asks for it).
+fn adapters_primary_first() -> Vec<wgpu::Adapter> {
+    let list = adapters(&instance_for(wgpu::Backends::PRIMARY));
+    if !list.is_empty() || wgpu::Backends::from_env().is_some() {
+        return list;
+    }
+    adapters(&instance_for(wgpu::Backends::GL))
 }
 
 /// An open device with its adapter.
@@ -59,16 +85,33 @@ impl GpuContext {
     /// Opens the best adapter, requesting its own limits and the features
     /// hitex can use (BC texture compression, filterable float textures).
     pub fn new() -> Result<Self, GpuError> {
-        Self::with_backends(wgpu::Backends::all())
+        let adapter = adapters_primary_first().into_iter().next().ok_or(GpuError::NoAdapter)?;
+        Self::open(adapter)
+    }
+
+    /// Opens the best adapter if it is a hardware GPU; a software rasterizer
+    /// alone is [`GpuError::SoftwareOnly`] (what `--backend auto` checks).
+    pub fn hardware() -> Result<Self, GpuError> {
+        let adapter = adapters_primary_first().into_iter().next().ok_or(GpuError::NoAdapter)?;
+        let info = adapter.get_info();
+        if !is_hardware(&info) {
+            return Err(GpuError::SoftwareOnly(describe(&info)));
+        }
+        Self::open(adapter)
     }
 
     /// Like [`GpuContext::new`], choosing only among adapters of `backends`.
     pub fn with_backends(backends: wgpu::Backends) -> Result<Self, GpuError> {
-        let instance = instance();
+        let instance = instance_for(backends);
         let adapter = adapters(&instance)
             .into_iter()
             .find(|a| backends.contains(wgpu::Backends::from(a.get_info().backend)))
             .ok_or(GpuError::NoAdapter)?;
+        Self::open(adapter)
+    }
+
+    /// Opens a device on `adapter`.
+    fn open(adapter: wgpu::Adapter) -> Result<Self, GpuError> {
         let info = adapter.get_info();
         let wanted = wgpu::Features::TEXTURE_COMPRESSION_BC
             | wgpu::Features::TEXTURE_COMPRESSION_BC_SLICED_3D

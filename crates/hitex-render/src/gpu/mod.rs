@@ -24,6 +24,9 @@ pub enum GpuError {
     /// No adapter at all.
     #[error("no GPU adapter found (install Mesa's lavapipe: apt-get install mesa-vulkan-drivers libvulkan1)")]
     NoAdapter,
+    /// Only a software rasterizer was found, and hardware was asked for.
+    #[error("no hardware GPU: the only adapter is the software rasterizer {0}")]
+    SoftwareOnly(String),
     /// The adapter refused a device.
     #[error("cannot open a GPU device: {0}")]
     Device(String),
@@ -149,14 +152,24 @@ pub struct GpuRenderer {
 }
 
 impl GpuRenderer {
-    /// Opens the best adapter and builds the pipeline.
+    /// Opens the best adapter (a software rasterizer too) and builds the pipeline.
     pub fn new() -> Result<Self, GpuError> {
-        Self::with_backends(wgpu::Backends::all())
+        Self::on(GpuContext::new()?)
+    }
+
+    /// Opens the best adapter if it is a hardware GPU, else
+    /// [`GpuError::SoftwareOnly`].
+    pub fn hardware() -> Result<Self, GpuError> {
+        Self::on(GpuContext::hardware()?)
     }
 
     /// Opens the best adapter among `backends` (e.g. `wgpu::Backends::GL`).
     pub fn with_backends(backends: wgpu::Backends) -> Result<Self, GpuError> {
-        let ctx = GpuContext::with_backends(backends)?;
+        Self::on(GpuContext::with_backends(backends)?)
+    }
+
+    /// Builds the pipeline on an opened context.
+    fn on(ctx: GpuContext) -> Result<Self, GpuError> {
         let device = &ctx.device;
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         // Bounds checks are ours, not naga's: every texel index goes through

@@ -1,0 +1,132 @@
+//! What a new user meets on the way in: pipes, negative numbers, output
+//! names, the backend `auto` chooses, exports that must keep everything.
+
+mod common;
+
+use common::{error_lines, hitex, tmp};
+use std::io::Read;
+use std::process::{Command, Stdio};
+
+fn teapot() -> String {
+    concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/teapot.igs").to_string()
+}
+
+fn holed() -> String {
+    concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/holed-square.igs").to_string()
+}
+
+#[test]
+fn a_closed_pipe_ends_quietly() {
+    for args in [vec!["nurbs", "info", &teapot()[..]], vec!["btf", "info", "knit"]] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_hitex"))
+            .args(&args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("hitex runs");
+        // read one line's worth, then close the pipe as `head -1` does
+        let mut out = child.stdout.take().expect("stdout");
+        let mut first = [0u8; 1];
+        let _ = out.read(&mut first);
+        drop(out);
+        let mut err = String::new();
+        let _ = child.stderr.take().expect("stderr").read_to_string(&mut err);
+        let status = child.wait().expect("hitex ends");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert_ne!(status.code(), Some(101), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn negative_numbers_are_numbers() {
+    let d = tmp("negative");
+    let out = d.join("k.png");
+    let o = hitex(&[
+        "btf",
+        "render",
+        "knit",
+        "--light-azimuth",
+        "-30",
+        "--size",
+        "32x24",
+        "--backend",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // a parameter pair with a negative first value reaches hitex's own check
+    let o = hitex(&["nurbs", "eval", "teapot", "--uv", "-0.1,0.5"]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = error_lines(&o);
+    assert!(e.len() == 1 && e[0].contains("outside the patch domain"), "{e:?}");
+    // a negative repeat count is refused by its own message, not by the parser
+    let o = hitex(&["btf", "render", "knit", "--repeats", "-2", "-o", out.to_str().unwrap()]);
+    let e = error_lines(&o);
+    assert!(e.len() == 1 && e[0].contains("--repeats -2 must be in (0, 1000]"), "{e:?}");
+}
+
+#[test]
+fn the_output_extension_names_the_format() {
+    let d = tmp("extension");
+    let jpg = d.join("k.jpg");
+    let o = hitex(&["btf", "render", "knit", "--size", "32x24", "--backend", "cpu", "-o", jpg.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let bytes = std::fs::read(&jpg).unwrap();
+    assert_eq!(&bytes[..3], &[0xff, 0xd8, 0xff], "a .jpg holds JPEG");
+    let png = d.join("k.PNG");
+    let o = hitex(&["btf", "render", "knit", "--size", "32x24", "--backend", "cpu", "-o", png.to_str().unwrap()]);
+    assert!(o.status.success());
+    assert_eq!(&std::fs::read(&png).unwrap()[..4], b"\x89PNG");
+    // refused before any work, nothing written
+    let txt = d.join("k.txt");
+    let o = hitex(&["nurbs", "render", "teapot", "-o", txt.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!txt.exists());
+    // missing folders are created, as for every output
+    let nested = d.join("a/b/c.png");
+    let o =
+        hitex(&["nurbs", "render", "teapot", "--size", "32x24", "--backend", "cpu", "-o", nested.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(nested.is_file());
+}
+
+#[test]
+fn auto_names_its_backend_and_why() {
+    let d = tmp("auto");
+    let out = d.join("t.png");
+    let o = hitex(&["nurbs", "render", "teapot", "--size", "32x24", "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    // on a machine whose only adapter is a software rasterizer, auto takes the
+    // CPU and says why; with a hardware GPU it names the GPU
+    assert!(
+        text.contains("auto: no hardware GPU") || text.contains("gpu: ") || stderr.contains("falling back to the CPU"),
+        "{text}"
+    );
+    assert!(!stderr.lines().any(|l| l.contains("error")), "a line saying error on success: {stderr}");
+}
+
+#[test]
+fn nurbs_export_keeps_trims_in_every_format() {
+    let d = tmp("export-trims");
+    let info = |path: &str| -> String {
+        let o = hitex(&["nurbs", "info", path]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let original = info(&holed());
+    assert!(original.contains("trim"), "{original}");
+    for ext in ["igs", "obj", "json"] {
+        let out = d.join(format!("back.{ext}"));
+        let o = hitex(&["nurbs", "export", &holed(), "-o", out.to_str().unwrap()]);
+        assert!(o.status.success(), "{ext}: {}", String::from_utf8_lossy(&o.stderr));
+        let back = info(out.to_str().unwrap());
+        // the per-patch lines (degrees, trims, loop sizes) are the same
+        let trims = |s: &str| -> Vec<String> {
+            s.lines().filter(|l| l.starts_with(' ') && l.contains("trim")).map(str::to_string).collect()
+        };
+        assert_eq!(trims(&original), trims(&back), "{ext}");
+    }
+}
