@@ -65,6 +65,10 @@ pub struct Row {
     pub ms_median: f64,
     /// 1000 / ms_median.
     pub fps_median: f64,
+    /// Pixels of the frame per second at the median, in millions.
+    pub mpix_s: f64,
+    /// The CPU backend's SIMD level ("" for the GPU).
+    pub simd: String,
 }
 
 /// GPU median over CPU median for a case.
@@ -204,6 +208,8 @@ pub fn run_case_fns(
                 frames,
                 ms_median: ms,
                 fps_median: 1e3 / ms,
+                mpix_s: w as f64 * h as f64 / (ms * 1e3),
+                simd: if *kind == "cpu" { hitex_render::cpu::simd::level().to_string() } else { String::new() },
             });
         }
         if first_frames.len() == 2 {
@@ -224,28 +230,29 @@ pub fn run_case_fns(
 
 /// Prints a report as a table.
 pub fn print_table(r: &Report) {
-    println!("{:<14} {:<4} {:<44} {:>10} {:>8} {:>8}", "case", "be", "adapter", "size", "ms", "fps");
+    println!("{:<22} {:<4} {:<44} {:>10} {:>8} {:>8} {:>8}", "case", "be", "adapter", "size", "ms", "fps", "Mpix/s");
     for row in &r.rows {
         println!(
-            "{:<14} {:<4} {:<44} {:>10} {:>8.2} {:>8.1}",
+            "{:<22} {:<4} {:<44} {:>10} {:>8.2} {:>8.1} {:>8.1}",
             row.case,
             row.backend,
             row.adapter,
             format!("{}x{}", row.width, row.height),
             row.ms_median,
-            row.fps_median
+            row.fps_median,
+            row.mpix_s
         );
     }
     for q in &r.ratios {
         println!(
-            "{:<14} gpu/cpu median ratio {:.2} ({})",
+            "{:<22} gpu/cpu median ratio {:.2} ({})",
             q.case,
             q.gpu_over_cpu,
             if q.gpu_over_cpu > 1.0 { "CPU faster" } else { "GPU faster" }
         );
     }
     for p in &r.parity {
-        println!("{:<14} cpu vs gpu first frame: mean |Δ| {:.3}, p99 {} (8-bit steps)", p.case, p.mean_abs, p.p99);
+        println!("{:<22} cpu vs gpu first frame: mean |Δ| {:.3}, p99 {} (8-bit steps)", p.case, p.mean_abs, p.p99);
     }
 }
 

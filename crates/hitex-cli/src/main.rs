@@ -408,7 +408,15 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::View(args) => view::run(args),
         Command::Info => {
             println!("hitex {}", env!("CARGO_PKG_VERSION"));
-            println!("cpu backend: {} threads", rayon_threads());
+            let simd = hitex_render::cpu::simd::level();
+            let levels: Vec<&str> =
+                hitex_render::cpu::simd::SimdLevel::available_levels().iter().map(|l| l.name()).collect();
+            println!(
+                "cpu backend: {} threads, SIMD {simd} ({} f32 lanes per instruction; this processor runs {}; HITEX_SIMD forces one)",
+                rayon_threads(),
+                simd.width(),
+                levels.join(", ")
+            );
             print!("{}", hitex_render::adapters_report());
             Ok(())
         }
@@ -439,6 +447,10 @@ fn main() -> ExitCode {
         unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
     }
     let cli = Cli::parse();
+    if let Err(m) = hitex_render::cpu::simd::level_from_env() {
+        eprintln!("hitex: error: {m}");
+        return ExitCode::from(2);
+    }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(CliError::Input(m)) => {

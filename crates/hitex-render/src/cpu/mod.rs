@@ -8,6 +8,7 @@
 pub mod btf;
 pub mod nurbs;
 pub mod raster;
+pub mod simd;
 pub mod terrain;
 pub mod textured;
 
@@ -117,7 +118,7 @@ impl CpuRenderer {
 
 impl Renderer for CpuRenderer {
     fn name(&self) -> String {
-        format!("cpu ({} threads)", rayon::current_num_threads())
+        format!("cpu ({} threads, {})", rayon::current_num_threads(), simd::level())
     }
     fn render(&mut self, scene: &PreparedScene, width: u32, height: u32) -> Result<Frame, RenderError> {
         self.render_view(scene, &scene.camera, width, height)

@@ -10,7 +10,8 @@
 // index loops mirror the shader's loops over spans
 #![allow(clippy::needless_range_loop)]
 
-use super::raster::QuadShader;
+use super::raster::{Block, BlockShader};
+use super::simd::{self, LANES, Lanes, V3};
 use crate::nurbs::{NurbsFrame, NurbsVertex, PackedNurbs};
 use glam::{Mat4, Vec3, Vec4};
 use hitex_core::nurbs::{basis_ders_fixed, basis_ders_paper, find_span};
@@ -223,6 +224,18 @@ pub fn highlight(p: Vec3, n: Vec3, e: Vec3, origin: Vec3, spacing: f32) -> Vec3 
     if k.rem_euclid(2) == 0 { Vec3::new(0.95, 0.95, 0.9) } else { Vec3::new(0.08, 0.1, 0.16) }
 }
 
+/// `x⁴⁸` by five squarings and a product: the specular exponent of the
+/// shaded mode (`pow(x, 48.0)` in `nurbs.wgsl`; the two differ by rounding).
+#[inline(always)]
+pub fn pow48(x: f32) -> f32 {
+    let x2 = x * x;
+    let x3 = x2 * x;
+    let x6 = x3 * x3;
+    let x12 = x6 * x6;
+    let x24 = x12 * x12;
+    x24 * x24
+}
+
 /// The program with its bindings.
 pub struct NurbsProgram<'a> {
     frame: &'a NurbsFrame,
@@ -302,7 +315,7 @@ impl<'a> NurbsProgram<'a> {
                 let albedo = Vec3::new(0.72, 0.75, 0.80);
                 let ndl = n.dot(light).max(0.0);
                 let h = (light + view).normalize_or_zero();
-                let spec = if ndl > 0.0 { 0.35 * n.dot(h).max(0.0).powf(48.0) } else { 0.0 };
+                let spec = if ndl > 0.0 { 0.35 * pow48(n.dot(h).max(0.0)) } else { 0.0 };
                 let c = albedo * (f.ranges[2] + ndl) + Vec3::splat(spec);
                 let e = |x: f32| hitex_core::texture::linear_to_srgb_u8(x);
                 [e(c.x), e(c.y), e(c.z), 255]
@@ -312,46 +325,402 @@ impl<'a> NurbsProgram<'a> {
     }
 }
 
-impl QuadShader<VARYINGS> for NurbsProgram<'_> {
-    const WRITES_DEPTH: bool = true;
-
-    fn shade(&self, material: usize, v: &[[f32; VARYINGS]; 4], w: [f32; 4], live: u8) -> [[u8; 4]; 4] {
-        self.shade_depth(material, v, w, live, [0.0; 4]).0
-    }
-
-    fn shade_depth(
-        &self,
-        _: usize,
-        v: &[[f32; VARYINGS]; 4],
-        _: [f32; 4],
-        live: u8,
-        _z: [f32; 4],
-    ) -> ([[u8; 4]; 4], [f32; 4]) {
-        let mut rgba = [[0u8; 4]; 4];
-        let mut depth = [f32::NAN; 4];
-        // patch-boundary overlay: fwidth of u and v from the quad's lanes
-        let overlay = self.frame.params[3] & 2 == 2;
-        let (fu, fv) = if overlay {
-            let fw = |a: [f32; 4]| -> [f32; 4] {
-                let (dx, dy) = (super::textured::dpdx(a), super::textured::dpdy(a));
-                std::array::from_fn(|i| dx[i].abs() + dy[i].abs())
-            };
-            (fw(v.map(|l| l[3])), fw(v.map(|l| l[4])))
-        } else {
-            ([0.0; 4], [0.0; 4])
-        };
-        // helper lanes only feed the derivatives above: their colour is never computed
-        for lane in 0..4 {
-            if live & (1 << lane) != 0 {
-                let (mut c, d) = self.lane(&v[lane]);
-                if overlay && self.on_boundary(&v[lane], fu[lane], fv[lane]) {
-                    c = [20, 20, 24, 255];
-                }
-                rgba[lane] = c;
-                depth[lane] = d;
+impl NurbsProgram<'_> {
+    /// The block path of the prepared bicubic kernel: all live lanes on one
+    /// patch of degree 3×3 within one pair of knot spans (the common case:
+    /// neighbouring pixels share spans), shaded, isophote or normal mode, no
+    /// overlay. The spans are found once and the knots and the 16 control
+    /// points broadcast; every lane then runs the same straight-line steps as
+    /// [`eval_packed`] and [`NurbsProgram::lane`], in the same order, so the
+    /// result is bit for bit the per-lane one. `None` when the block does not
+    /// qualify.
+    #[inline(always)]
+    fn block_bicubic(&self, b: &Block<VARYINGS>, rgba: &mut [[u8; 4]; LANES], depth: &mut Lanes) -> Option<()> {
+        let f = self.frame;
+        let t = self.packed;
+        let mode = f.params[0];
+        if !matches!(mode, 0 | 1 | 6) || f.params[3] & 3 != 1 || b.live == 0 {
+            return None;
+        }
+        // one patch for every live lane
+        let first = b.live.trailing_zeros() as usize;
+        let patch_of = |lane: usize| (b.v[5][lane].round().max(0.0) as usize).min(t.patches.saturating_sub(1) as usize);
+        let patch = patch_of(first);
+        for lane in 0..LANES {
+            if b.live & (1 << lane) != 0 && patch_of(lane) != patch {
+                return None;
             }
         }
-        (rgba, depth)
+        let (kw, cw) = (t.knot_width as usize, t.cp_width as usize);
+        let head = t.control[patch * cw];
+        let (p, q, nu, nv) = (head[0] as usize, head[1] as usize, head[2] as usize, head[3] as usize);
+        if p != 3 || q != 3 {
+            return None;
+        }
+        let cu = t.knots_u[patch * kw] as usize;
+        let cv = t.knots_v[patch * kw] as usize;
+        let ku = &t.knots_u[patch * kw + 1..patch * kw + 1 + cu];
+        let kv = &t.knots_v[patch * kw + 1..patch * kw + 1 + cv];
+        let cp = &t.control[patch * cw + 1..patch * cw + 1 + nu * nv];
+        // clamp into the domain (every lane: helpers too stay finite)
+        let (u0, u1, v0, v1) = (ku[3], ku[nu], kv[3], kv[nv]);
+        let u = simd::map(&b.v[3], |x| x.max(u0).min(u1));
+        let v = simd::map(&b.v[4], |x| x.max(v0).min(v1));
+        // find knot span once; every live lane must fall in it
+        let su = find_span(nu - 1, 3, u[first], ku);
+        let sv = find_span(nv - 1, 3, v[first], kv);
+        for lane in 0..LANES {
+            if b.live & (1 << lane) != 0
+                && (find_span(nu - 1, 3, u[lane], ku) != su || find_span(nv - 1, 3, v[lane], kv) != sv)
+            {
+                return None;
+            }
+        }
+        // the arithmetic, one register of lanes at a time
+        let light = Vec3::new(f.light[0], f.light[1], f.light[2]);
+        let cam = Vec3::new(f.camera[0], f.camera[1], f.camera[2]);
+        let mut o = BicubicOut::default();
+        simd::run(BicubicOp { su, sv, u: &u, v: &v, ku, kv, cp, nu, cam, light, m: &f.view_proj, out: &mut o });
+        let n = V3 { x: o.nx, y: o.ny, z: o.nz };
+        let (ndl, spec, d) = (o.ndl, o.spec, o.depth);
+        let mut degenerate = 0u16;
+        for lane in 0..LANES {
+            let ok = o.len[lane] > 1e-6 * o.scale[lane] * o.scale[lane] && o.finite[lane] != 0.0;
+            if !ok {
+                degenerate |= 1 << lane;
+            }
+        }
+        let raw = |c: Vec3| {
+            let q = |x: f32| (if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) } * 255.0 + 0.5) as u8;
+            [q(c.x), q(c.y), q(c.z), 255]
+        };
+        match mode {
+            0 => {
+                // Blinn–Phong, the same steps as `lane`
+                let albedo = Vec3::new(0.72, 0.75, 0.80);
+                let amb = f.ranges[2];
+                let e = hitex_core::texture::linear_to_srgb_u8;
+                for lane in 0..LANES {
+                    if b.live & (1 << lane) != 0 {
+                        let k = amb + ndl[lane];
+                        let c = |alb: f32| alb * k + spec[lane];
+                        rgba[lane] = [e(c(albedo.x)), e(c(albedo.y)), e(c(albedo.z)), 255];
+                    }
+                }
+            }
+            1 => {
+                for lane in 0..LANES {
+                    if b.live & (1 << lane) != 0 {
+                        rgba[lane] = raw(isophote(n.lane(lane), light, f.params[1]));
+                    }
+                }
+            }
+            _ => {
+                for lane in 0..LANES {
+                    if b.live & (1 << lane) != 0 {
+                        rgba[lane] = raw(n.lane(lane) * 0.5 + Vec3::splat(0.5));
+                    }
+                }
+            }
+        }
+        depth.copy_from_slice(&d);
+        // trimmed-away lanes are discarded; degenerate normals take the per-lane path
+        let trimmed = t.trims[patch * t.trim_width as usize][0] as usize != 0;
+        for lane in 0..LANES {
+            if b.live & (1 << lane) == 0 {
+                continue;
+            }
+            if trimmed && trimmed_away(t, patch, b.v[3][lane], b.v[4][lane]) {
+                rgba[lane] = [0, 0, 0, 0];
+                depth[lane] = f32::NAN;
+            } else if degenerate & (1 << lane) != 0 {
+                let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
+                (rgba[lane], depth[lane]) = self.lane(&v);
+            }
+        }
+        Some(())
+    }
+}
+
+/// What the bicubic lane kernel hands back per lane.
+#[derive(Default)]
+struct BicubicOut {
+    nx: Lanes,
+    ny: Lanes,
+    nz: Lanes,
+    depth: Lanes,
+    ndl: Lanes,
+    spec: Lanes,
+    len: Lanes,
+    scale: Lanes,
+    /// 1 where S_u × S_v is finite.
+    finite: Lanes,
+}
+
+/// The bicubic point, normal, depth and Blinn–Phong terms of 16 lanes that
+/// share their knot spans, one register of lanes at a time: the steps of
+/// [`eval_packed`] (`basis_ders_fixed::<f32, 3, 4>`, `sums`, the quotient
+/// rule), [`exact_normal`] and [`NurbsProgram::lane`] in the same order, with
+/// the knots and control points broadcast.
+struct BicubicOp<'a> {
+    su: usize,
+    sv: usize,
+    u: &'a Lanes,
+    v: &'a Lanes,
+    ku: &'a [f32],
+    kv: &'a [f32],
+    cp: &'a [[f32; 4]],
+    nu: usize,
+    cam: Vec3,
+    light: Vec3,
+    m: &'a [[f32; 4]; 4],
+    out: &'a mut BicubicOut,
+}
+
+/// Lane arithmetic on one register of a pulp level.
+#[derive(Clone, Copy)]
+struct R<S: pulp::Simd>(S);
+
+impl<S: pulp::Simd> R<S> {
+    #[inline(always)]
+    fn k(self, x: f32) -> S::f32s {
+        self.0.splat_f32s(x)
+    }
+    #[inline(always)]
+    fn add(self, a: S::f32s, b: S::f32s) -> S::f32s {
+        self.0.add_f32s(a, b)
+    }
+    #[inline(always)]
+    fn sub(self, a: S::f32s, b: S::f32s) -> S::f32s {
+        self.0.sub_f32s(a, b)
+    }
+    #[inline(always)]
+    fn mul(self, a: S::f32s, b: S::f32s) -> S::f32s {
+        self.0.mul_f32s(a, b)
+    }
+    #[inline(always)]
+    fn div(self, a: S::f32s, b: S::f32s) -> S::f32s {
+        self.0.div_f32s(a, b)
+    }
+    #[inline(always)]
+    fn sqrt(self, a: S::f32s) -> S::f32s {
+        self.0.sqrt_f32s(a)
+    }
+    /// `a > 0 ? a : 0` (as `a.max(0.0)` for every non-NaN a, and 0 for NaN)
+    #[inline(always)]
+    fn pos(self, a: S::f32s) -> S::f32s {
+        let z = self.k(0.0);
+        self.0.select_f32s(self.0.less_than_f32s(z, a), a, z)
+    }
+    #[inline(always)]
+    fn dot(self, a: [S::f32s; 3], b: [S::f32s; 3]) -> S::f32s {
+        self.add(self.add(self.mul(a[0], b[0]), self.mul(a[1], b[1])), self.mul(a[2], b[2]))
+    }
+    /// `v.normalize_or_zero()` as glam computes it: `v · (1 / |v|)`, zero where
+    /// that factor is not finite and positive.
+    #[inline(always)]
+    fn normalize_or_zero(self, v: [S::f32s; 3]) -> [S::f32s; 3] {
+        let rcp = self.div(self.k(1.0), self.sqrt(self.dot(v, v)));
+        // finite and > 0: 0 < rcp < inf (NaN fails both)
+        let ok = self.0.less_than_f32s(rcp, self.k(f32::INFINITY));
+        let pos = self.0.less_than_f32s(self.k(0.0), rcp);
+        let r = self.0.select_f32s(ok, self.0.select_f32s(pos, rcp, self.k(0.0)), self.k(0.0));
+        [self.mul(v[0], r), self.mul(v[1], r), self.mul(v[2], r)]
+    }
+}
+
+impl BicubicOp<'_> {
+    /// Cubic basis functions and first derivatives at `u` (knots of `span` shared).
+    #[inline(always)]
+    fn basis<S: pulp::Simd>(r: R<S>, span: usize, u: S::f32s, k: &[f32]) -> [[S::f32s; 4]; 2] {
+        let zero = r.k(0.0);
+        let mut n = [zero; 4];
+        n[0] = r.k(1.0);
+        let mut left = [zero; 4];
+        let mut right = [zero; 4];
+        let mut row_p1 = [zero; 4];
+        for j in 1..=3 {
+            left[j] = r.sub(u, r.k(k[span + 1 - j]));
+            right[j] = r.sub(r.k(k[span + j]), u);
+            let mut saved = zero;
+            for q in 0..j {
+                let temp = r.div(n[q], r.add(right[q + 1], left[j - q]));
+                n[q] = r.add(saved, r.mul(right[q + 1], temp));
+                saved = r.mul(left[j - q], temp);
+            }
+            n[j] = saved;
+            if j == 2 {
+                row_p1 = n;
+            }
+        }
+        // N'_{·,3} from the row of degree 2 (eq. 6)
+        let first = span + 1 - 3;
+        let mut d = [zero; 4];
+        for q in 0..=3 {
+            let i = first + q - 1;
+            let mut v = zero;
+            if q >= 1 {
+                let den = k[i + 3] - k[i];
+                if den > 0.0 {
+                    v = r.add(v, r.div(row_p1[q - 1], r.k(den)));
+                }
+            }
+            if q < 3 {
+                let den = k[i + 4] - k[i + 1];
+                if den > 0.0 {
+                    v = r.sub(v, r.div(row_p1[q], r.k(den)));
+                }
+            }
+            d[q] = r.mul(r.k(3.0), v);
+        }
+        [n, d]
+    }
+}
+
+impl pulp::WithSimd for BicubicOp<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, simd: S) {
+        let r = R(simd);
+        let w = S::F32_LANES;
+        let (u, _) = S::as_simd_f32s(self.u);
+        let (v, _) = S::as_simd_f32s(self.v);
+        let o = self.out;
+        for c in 0..LANES / w {
+            let bu = Self::basis(r, self.su, u[c], self.ku);
+            let bv = Self::basis(r, self.sv, v[c], self.kv);
+            // homogeneous sums over the 4×4 control points
+            let (i0, j0) = (self.su - 3, self.sv - 3);
+            let zero = r.k(0.0);
+            let mut a = [[zero; 4]; 3];
+            for s in 0..4 {
+                let row = (j0 + s) * self.nu + i0;
+                let mut t0 = [zero; 4];
+                let mut t1 = [zero; 4];
+                for q in 0..4 {
+                    let cp = self.cp[row + q];
+                    for k in 0..4 {
+                        t0[k] = r.add(t0[k], r.mul(r.k(cp[k]), bu[0][q]));
+                        t1[k] = r.add(t1[k], r.mul(r.k(cp[k]), bu[1][q]));
+                    }
+                }
+                for k in 0..4 {
+                    a[0][k] = r.add(a[0][k], r.mul(t0[k], bv[0][s]));
+                    a[1][k] = r.add(a[1][k], r.mul(t1[k], bv[0][s]));
+                    a[2][k] = r.add(a[2][k], r.mul(t0[k], bv[1][s]));
+                }
+            }
+            // rational quotient rule
+            let wt = a[0][3];
+            let sp = [r.div(a[0][0], wt), r.div(a[0][1], wt), r.div(a[0][2], wt)];
+            let quot = |d: &[S::f32s; 4]| -> [S::f32s; 3] {
+                std::array::from_fn(|i| r.div(r.sub(d[i], r.mul(sp[i], d[3])), wt))
+            };
+            let s_u = quot(&a[1]);
+            let s_v = quot(&a[2]);
+            // exact normal (degenerate lanes are redone per lane by the caller)
+            let cr = [
+                r.sub(r.mul(s_u[1], s_v[2]), r.mul(s_u[2], s_v[1])),
+                r.sub(r.mul(s_u[2], s_v[0]), r.mul(s_u[0], s_v[2])),
+                r.sub(r.mul(s_u[0], s_v[1]), r.mul(s_u[1], s_v[0])),
+            ];
+            let len = r.sqrt(r.dot(cr, cr));
+            let scale = r.add(r.sqrt(r.dot(s_u, s_u)), r.sqrt(r.dot(s_v, s_v)));
+            let rcp = r.div(r.k(1.0), len);
+            let mut n = [r.mul(cr[0], rcp), r.mul(cr[1], rcp), r.mul(cr[2], rcp)];
+            // finite: x − x is 0 for finite x, NaN otherwise
+            let fin = r.add(r.add(r.sub(cr[0], cr[0]), r.sub(cr[1], cr[1])), r.sub(cr[2], cr[2]));
+            let finite = r.0.select_f32s(r.0.less_than_f32s(fin, r.k(1.0)), r.k(1.0), zero);
+            // two-sided: towards the camera
+            let view = r.normalize_or_zero([
+                r.sub(r.k(self.cam.x), sp[0]),
+                r.sub(r.k(self.cam.y), sp[1]),
+                r.sub(r.k(self.cam.z), sp[2]),
+            ]);
+            let back = r.0.less_than_f32s(r.dot(n, view), zero);
+            for x in &mut n {
+                *x = r.0.select_f32s(back, r.0.neg_f32s(*x), *x);
+            }
+            // depth of the exact point (glam's order: ((c0·x + c1·y) + c2·z) + c3·1)
+            let m = self.m;
+            let row = |i: usize| {
+                r.add(
+                    r.add(r.add(r.mul(r.k(m[0][i]), sp[0]), r.mul(r.k(m[1][i]), sp[1])), r.mul(r.k(m[2][i]), sp[2])),
+                    r.mul(r.k(m[3][i]), r.k(1.0)),
+                )
+            };
+            let depth = r.div(row(2), row(3));
+            // Blinn–Phong terms
+            let l = [r.k(self.light.x), r.k(self.light.y), r.k(self.light.z)];
+            let ndl = r.pos(r.dot(n, l));
+            let h = r.normalize_or_zero([r.add(l[0], view[0]), r.add(l[1], view[1]), r.add(l[2], view[2])]);
+            let nh = r.pos(r.dot(n, h));
+            let x2 = r.mul(nh, nh);
+            let x3 = r.mul(x2, nh);
+            let x6 = r.mul(x3, x3);
+            let x12 = r.mul(x6, x6);
+            let x24 = r.mul(x12, x12);
+            let p48 = r.mul(x24, x24);
+            let lit = r.0.less_than_f32s(zero, ndl);
+            let spec = r.0.select_f32s(lit, r.mul(r.k(0.35), p48), zero);
+            for (dst, val) in [
+                (&mut o.nx, n[0]),
+                (&mut o.ny, n[1]),
+                (&mut o.nz, n[2]),
+                (&mut o.depth, depth),
+                (&mut o.ndl, ndl),
+                (&mut o.spec, spec),
+                (&mut o.len, len),
+                (&mut o.scale, scale),
+                (&mut o.finite, finite),
+            ] {
+                S::as_mut_simd_f32s(dst).0[c] = val;
+            }
+        }
+    }
+}
+
+impl BlockShader<VARYINGS> for NurbsProgram<'_> {
+    const WRITES_DEPTH: bool = true;
+
+    #[inline(always)]
+    fn shade_block(&self, b: &Block<VARYINGS>, rgba: &mut [[u8; 4]; LANES], depth: &mut Lanes) {
+        *depth = [f32::NAN; LANES];
+        if self.block_bicubic(b, rgba, depth).is_some() {
+            return;
+        }
+        // any degree, any mode: lane by lane
+        let overlay = self.frame.params[3] & 2 == 2;
+        for quad in 0..4 {
+            let base = 4 * quad;
+            if (b.live >> base) & 0xf == 0 {
+                continue;
+            }
+            // patch-boundary overlay: fwidth of u and v from the quad's lanes
+            let (fu, fv) = if overlay {
+                let fw = |j: usize| -> [f32; 4] {
+                    let a: [f32; 4] = std::array::from_fn(|l| b.v[j][base + l]);
+                    let (dx, dy) = (super::textured::dpdx(a), super::textured::dpdy(a));
+                    std::array::from_fn(|i| dx[i].abs() + dy[i].abs())
+                };
+                (fw(3), fw(4))
+            } else {
+                ([0.0; 4], [0.0; 4])
+            };
+            // helper lanes only feed the derivatives above: their colour is never computed
+            for l in 0..4 {
+                let lane = base + l;
+                if b.live & (1 << lane) != 0 {
+                    let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
+                    let (mut c, d) = self.lane(&v);
+                    if overlay && self.on_boundary(&v, fu[l], fv[l]) {
+                        c = [20, 20, 24, 255];
+                    }
+                    rgba[lane] = c;
+                    depth[lane] = d;
+                }
+            }
+        }
     }
 }
 
@@ -359,6 +728,74 @@ impl QuadShader<VARYINGS> for NurbsProgram<'_> {
 mod tests {
     use super::*;
     use hitex_core::nurbs::NurbsSurface;
+
+    /// The block path and the per-lane path give the same bits: colour and
+    /// depth of every lane, in the three modes the block path takes.
+    #[test]
+    fn block_bicubic_equals_the_per_lane_program_bit_for_bit() {
+        let (nu, nv) = (6, 5);
+        let mut pts = Vec::new();
+        for j in 0..nv {
+            for i in 0..nu {
+                let (x, y) = (i as f64, j as f64);
+                pts.push([x, y, (x * 0.9).sin() * (y * 0.7).cos(), 1.0 + 0.3 * ((i + j) % 3) as f64]);
+            }
+        }
+        let knots_u = vec![0.0, 0.0, 0.0, 0.0, 0.3, 0.55, 1.0, 1.0, 1.0, 1.0];
+        let knots_v = vec![0.0, 0.0, 0.0, 0.0, 0.6, 1.0, 1.0, 1.0, 1.0];
+        let s = NurbsSurface::new(3, 3, nu, nv, knots_u, knots_v, pts).unwrap();
+        let prepared = crate::nurbs::PreparedNurbs::new(vec![s.clone()], &[s.domain()], 4);
+        let cam = hitex_core::scene::Camera::new(
+            Vec3::new(2.5, -6.0, 5.0),
+            Vec3::new(2.5, 2.0, 0.0),
+            Vec3::Z,
+            40.0,
+            0.1,
+            100.0,
+        )
+        .unwrap();
+        let mut checked = 0;
+        for mode in [0u32, 1, 6] {
+            let mut frame = prepared.frame(&cam, 64, 48);
+            frame.params[0] = mode;
+            frame.params[3] = 1;
+            let prog = NurbsProgram::new(&frame, &prepared.packed);
+            for k in 0..200 {
+                // 16 lanes near one point: most blocks share spans, some straddle a knot
+                let (cu, cv) = ((k % 20) as f32 / 19.0, (k / 20) as f32 / 9.0);
+                let mut b = Block::<VARYINGS> {
+                    material: 0,
+                    x: 0,
+                    y: 0,
+                    v: [[0.0; LANES]; VARYINGS],
+                    w: [1.0; LANES],
+                    z: [0.5; LANES],
+                    live: 0xffff ^ (1 << (k % 16)),
+                };
+                for lane in 0..LANES {
+                    b.v[2][lane] = 1.0;
+                    b.v[3][lane] = (cu + 0.004 * (lane % 8) as f32).min(1.0);
+                    b.v[4][lane] = (cv + 0.004 * (lane / 8) as f32).min(1.0);
+                }
+                let mut rgba = [[0u8; 4]; LANES];
+                let mut depth = [f32::NAN; LANES];
+                if prog.block_bicubic(&b, &mut rgba, &mut depth).is_none() {
+                    continue;
+                }
+                checked += 1;
+                for lane in 0..LANES {
+                    if b.live & (1 << lane) == 0 {
+                        continue;
+                    }
+                    let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
+                    let (c, d) = prog.lane(&v);
+                    assert_eq!(rgba[lane], c, "mode {mode} block {k} lane {lane}");
+                    assert_eq!(depth[lane].to_bits(), d.to_bits(), "mode {mode} block {k} lane {lane}");
+                }
+            }
+        }
+        assert!(checked > 300, "the block path took only {checked} blocks");
+    }
 
     #[test]
     fn packed_f32_evaluation_tracks_the_f64_reference() {

@@ -15,6 +15,10 @@
 //!   for all four lanes (uncovered lanes are helpers, as on a GPU) and one
 //!   call of the fragment program.
 
+// lane loops index several arrays by the same lane, as the lane code reads
+#![allow(clippy::needless_range_loop)]
+
+use super::simd::{self, LANES, Lanes};
 use crate::prepare::Draw;
 use glam::{Mat4, Vec3, Vec4};
 use rayon::prelude::*;
@@ -50,6 +54,67 @@ pub trait QuadShader<const K: usize>: Sync {
         z: [f32; 4],
     ) -> ([[u8; 4]; 4], [f32; 4]) {
         (self.shade(material, v, w, live), z)
+    }
+}
+
+/// A block of four 2×2 quads side by side (8×2 pixels) handed to a
+/// program at once, as structure of arrays: lane `4q + l` is lane `l` of quad
+/// `q` ((0,0) (1,0) (0,1) (1,1)), so that screen-space derivatives stay per
+/// quad (differences of lanes within a group of four, as on a GPU).
+pub struct Block<const K: usize> {
+    /// Material of the triangle.
+    pub material: usize,
+    /// Pixel column of lane 0 (even).
+    pub x: u32,
+    /// Pixel row of lane 0 (even).
+    pub y: u32,
+    /// Perspective-correct varyings: `v[j][lane]`.
+    pub v: [Lanes; K],
+    /// Perspective-correct clip w per lane.
+    pub w: Lanes,
+    /// Screen-linear depth per lane.
+    pub z: Lanes,
+    /// Bit `lane` set: the lane is covered and its colour is written (the
+    /// others are helpers feeding derivatives; their colour may be left
+    /// uncomputed).
+    pub live: u16,
+}
+
+/// A fragment program shading a [`Block`] of 16 lanes. Every [`QuadShader`]
+/// is one (quad by quad); the programs rewritten for lanes implement it directly.
+pub trait BlockShader<const K: usize>: Sync {
+    /// True when the program computes its own depth (WGSL
+    /// `@builtin(frag_depth)`): the depth test then runs after shading.
+    const WRITES_DEPTH: bool = false;
+    /// Writes the colour of every live lane into `rgba` and, for programs
+    /// that write depth, each lane's depth in [0, 1] into `depth` (anything
+    /// else, NaN included, discards the lane).
+    fn shade_block(&self, b: &Block<K>, rgba: &mut [[u8; 4]; LANES], depth: &mut Lanes);
+}
+
+impl<const K: usize, S: QuadShader<K>> BlockShader<K> for S {
+    const WRITES_DEPTH: bool = <S as QuadShader<K>>::WRITES_DEPTH;
+    #[inline(always)]
+    fn shade_block(&self, b: &Block<K>, rgba: &mut [[u8; 4]; LANES], depth: &mut Lanes) {
+        for q in 0..4 {
+            let live = ((b.live >> (4 * q)) & 0xf) as u8;
+            if live == 0 {
+                continue;
+            }
+            let v: [[f32; K]; 4] = std::array::from_fn(|l| std::array::from_fn(|j| b.v[j][4 * q + l]));
+            let w: [f32; 4] = std::array::from_fn(|l| b.w[4 * q + l]);
+            if <S as BlockShader<K>>::WRITES_DEPTH {
+                let z: [f32; 4] = std::array::from_fn(|l| b.z[4 * q + l]);
+                let (c, d) = self.shade_depth(b.material, &v, w, live, z);
+                for l in 0..4 {
+                    rgba[4 * q + l] = c[l];
+                    depth[4 * q + l] = d[l];
+                }
+            } else {
+                let c = self.shade(b.material, &v, w, live);
+                rgba[4 * q..4 * q + 4].copy_from_slice(&c);
+            }
+        }
     }
 }
 
@@ -141,7 +206,7 @@ fn clip_polygon(poly: &mut Vec<ClipVert>, scratch: &mut Vec<ClipVert>) {
 /// Rasterizes indexed triangles into `target`, drawing `draws` in order.
 /// `positions` are world positions; `varyings` the per-vertex inputs of the
 /// fragment program.
-pub fn rasterize<const K: usize, S: QuadShader<K>>(
+pub fn rasterize<const K: usize, S: BlockShader<K>>(
     target: &mut Target,
     view_proj: Mat4,
     positions: &[Vec3],
@@ -198,7 +263,8 @@ pub fn rasterize<const K: usize, S: QuadShader<K>>(
             let y_band = b as u32 * BAND;
             let rows = (color.len() / w) as u32;
             for &ti in &bins[b] {
-                raster_band(&tris[ti as usize], shader, color, depth, width, y_band, rows);
+                let t = &tris[ti as usize];
+                simd::run(BandOp { t, shader, color: &mut *color, depth: &mut *depth, width, y_band, rows });
             }
         },
     );
@@ -291,7 +357,38 @@ fn edge(ax: i64, ay: i64, bx: i64, by: i64, px: i64, py: i64) -> i64 {
     (bx - ax) * (py - ay) - (by - ay) * (px - ax)
 }
 
-fn raster_band<const K: usize, S: QuadShader<K>>(
+/// The lane offsets (in pixels) of a block: quad `q` (left to right), lane
+/// `l` of the quad ((0,0) (1,0) (0,1) (1,1)) is lane `4q + l`.
+#[inline(always)]
+const fn lane_dx(lane: usize) -> i64 {
+    ((lane / 4) * 2 + (lane & 1)) as i64
+}
+#[inline(always)]
+const fn lane_dy(lane: usize) -> i64 {
+    ((lane >> 1) & 1) as i64
+}
+
+/// The traversal of one band for one triangle, compiled per SIMD level.
+struct BandOp<'a, const K: usize, S> {
+    t: &'a Setup<K>,
+    shader: &'a S,
+    color: &'a mut [[u8; 4]],
+    depth: &'a mut [f32],
+    width: u32,
+    y_band: u32,
+    rows: u32,
+}
+
+impl<const K: usize, S: BlockShader<K>> pulp::WithSimd for BandOp<'_, K, S> {
+    type Output = ();
+    #[inline(always)]
+    fn with_simd<Sm: pulp::Simd>(self, _: Sm) {
+        raster_band(self.t, self.shader, self.color, self.depth, self.width, self.y_band, self.rows);
+    }
+}
+
+#[inline(always)]
+fn raster_band<const K: usize, S: BlockShader<K>>(
     t: &Setup<K>,
     shader: &S,
     color: &mut [[u8; 4]],
@@ -313,8 +410,31 @@ fn raster_band<const K: usize, S: QuadShader<K>>(
     // per-pixel steps of each edge function
     let step_x: [i64; 3] = ea.map(|(a, b)| -(y[b] - y[a]) * ONE);
     let step_y: [i64; 3] = ea.map(|(a, b)| (x[b] - x[a]) * ONE);
-    let lane_off = |i: usize| -> [i64; 4] { [0, step_x[i], step_y[i], step_x[i] + step_y[i]] };
-    let lane_offs = [lane_off(0), lane_off(1), lane_off(2)];
+    // per-lane offsets of each edge function within a block
+    let offs: [[i64; LANES]; 3] = std::array::from_fn(|i| {
+        let mut o = [0i64; LANES];
+        for (lane, v) in o.iter_mut().enumerate() {
+            *v = lane_dx(lane) * step_x[i] + lane_dy(lane) * step_y[i];
+        }
+        o
+    });
+    // the block's extreme offsets (its corners) for trivial reject and accept
+    let corner = |i: usize| -> (i64, i64) {
+        let c = [0, 7 * step_x[i], step_y[i], 7 * step_x[i] + step_y[i]];
+        (c.iter().copied().min().unwrap_or(0), c.iter().copied().max().unwrap_or(0))
+    };
+    let corners = [corner(0), corner(1), corner(2)];
+    let mut block = Block::<K> {
+        material: t.material,
+        x: 0,
+        y: 0,
+        v: [[0.0; LANES]; K],
+        w: [0.0; LANES],
+        z: [0.0; LANES],
+        live: 0,
+    };
+    let mut rgba = [[0u8; 4]; LANES];
+    let mut zout = [0.0f32; LANES];
     let mut qy = y0;
     while qy < y1 {
         let py = qy as i64 * ONE + ONE / 2;
@@ -323,38 +443,41 @@ fn raster_band<const K: usize, S: QuadShader<K>>(
         for (i, (a, b)) in ea.iter().enumerate() {
             e_row[i] = edge(x[*a], y[*a], x[*b], y[*b], px, py);
         }
+        // rows of this pair inside the band and the frame
+        let row_ok = [qy < y_band + rows, qy + 1 < y_band + rows];
         let mut qx = x0;
         while qx < x1 {
-            // coverage of the four lanes
-            let mut mask = 0u8;
-            let mut e_lane = [[0i64; 3]; 4];
-            for lane in 0..4 {
-                let mut inside = true;
-                for i in 0..3 {
-                    let e = e_row[i] + lane_offs[i][lane];
-                    e_lane[lane][i] = e;
-                    inside &= e + t.bias[i] >= 0;
+            // trivial reject: an edge negative at every corner of the block
+            let outside = (0..3).any(|i| e_row[i] + corners[i].1 + t.bias[i] < 0);
+            if !outside {
+                let full = (0..3).all(|i| e_row[i] + corners[i].0 + t.bias[i] >= 0);
+                let mut mask = 0u16;
+                for lane in 0..LANES {
+                    let inside = full || (0..3).all(|i| e_row[i] + offs[i][lane] + t.bias[i] >= 0);
+                    let lx = qx + lane_dx(lane) as u32;
+                    if inside && lx < width && row_ok[lane_dy(lane) as usize] {
+                        mask |= 1 << lane;
+                    }
                 }
-                let (lx, ly) = (qx + (lane as u32 & 1), qy + (lane as u32 >> 1));
-                if inside && lx < width && ly >= y_band && ly < y_band + rows {
-                    mask |= 1 << lane;
+                if mask != 0 {
+                    shade_block(
+                        t, shader, color, depth, width, y_band, qx, qy, mask, &e_row, &offs, &mut block, &mut rgba,
+                        &mut zout,
+                    );
                 }
-            }
-            if mask != 0 {
-                shade_quad(t, shader, color, depth, width, y_band, qx, qy, mask, &e_lane);
             }
             for (i, e) in e_row.iter_mut().enumerate() {
-                *e += 2 * step_x[i];
+                *e += 8 * step_x[i];
             }
-            qx += 2;
+            qx += 8;
         }
         qy += 2;
     }
 }
 
 #[allow(clippy::too_many_arguments)]
-#[inline]
-fn shade_quad<const K: usize, S: QuadShader<K>>(
+#[inline(always)]
+fn shade_block<const K: usize, S: BlockShader<K>>(
     t: &Setup<K>,
     shader: &S,
     color: &mut [[u8; 4]],
@@ -363,57 +486,71 @@ fn shade_quad<const K: usize, S: QuadShader<K>>(
     y_band: u32,
     qx: u32,
     qy: u32,
-    mut mask: u8,
-    e_lane: &[[i64; 3]; 4],
+    mut mask: u16,
+    e_row: &[i64; 3],
+    offs: &[[i64; LANES]; 3],
+    b: &mut Block<K>,
+    rgba: &mut [[u8; 4]; LANES],
+    zout: &mut Lanes,
 ) {
     // screen-linear barycentrics λ1 = E(edge 2→0)/A, λ2 = E(edge 0→1)/A
-    let l1 = e_lane.map(|e| e[1] as f32 * t.inv_area);
-    let l2 = e_lane.map(|e| e[2] as f32 * t.inv_area);
-    let z: [f32; 4] = std::array::from_fn(|lane| t.z[0] + l1[lane] * t.z[1] + l2[lane] * t.z[2]);
-    let index = |lane: usize| {
-        let (lx, ly) = (qx + (lane as u32 & 1), qy + (lane as u32 >> 1) - y_band);
+    let mut l1 = [0.0f32; LANES];
+    let mut l2 = [0.0f32; LANES];
+    for lane in 0..LANES {
+        l1[lane] = (e_row[1] + offs[1][lane]) as f32 * t.inv_area;
+        l2[lane] = (e_row[2] + offs[2][lane]) as f32 * t.inv_area;
+    }
+    for lane in 0..LANES {
+        b.z[lane] = t.z[0] + l1[lane] * t.z[1] + l2[lane] * t.z[2];
+    }
+    let index = |lane: usize| -> usize {
+        let (lx, ly) = (qx + lane_dx(lane) as u32, qy + lane_dy(lane) as u32 - y_band);
         ly as usize * width as usize + lx as usize
-    };
-    let depth_test = |mask: &mut u8, z: &[f32; 4], depth: &[f32]| {
-        for (lane, zl) in z.iter().enumerate() {
-            if *mask & (1 << lane) != 0 && zl.partial_cmp(&depth[index(lane)]) != Some(std::cmp::Ordering::Less) {
-                *mask &= !(1 << lane);
-            }
-        }
     };
     // early depth test, unless the program computes depth itself
     if !S::WRITES_DEPTH {
-        depth_test(&mut mask, &z, depth);
+        for lane in 0..LANES {
+            if mask & (1 << lane) != 0 && b.z[lane].partial_cmp(&depth[index(lane)]) != Some(std::cmp::Ordering::Less) {
+                mask &= !(1 << lane);
+            }
+        }
         if mask == 0 {
             return;
         }
     }
-    // perspective-correct varyings for all lanes
-    let mut v = [[0.0f32; K]; 4];
-    let mut w = [0.0f32; 4];
-    for lane in 0..4 {
+    // perspective-correct varyings for all lanes (uncovered ones are helpers)
+    for lane in 0..LANES {
         let q = t.q[0] + l1[lane] * t.q[1] + l2[lane] * t.q[2];
-        let inv_q = 1.0 / q;
-        w[lane] = inv_q;
-        let (a, b, c) = (&t.va[0], &t.va[1], &t.va[2]);
-        for (j, out) in v[lane].iter_mut().enumerate() {
-            *out = (a[j] + l1[lane] * b[j] + l2[lane] * c[j]) * inv_q;
+        b.w[lane] = 1.0 / q;
+    }
+    for j in 0..K {
+        let (a0, a1, a2) = (t.va[0][j], t.va[1][j], t.va[2][j]);
+        for lane in 0..LANES {
+            b.v[j][lane] = (a0 + l1[lane] * a1 + l2[lane] * a2) * b.w[lane];
         }
     }
-    let (rgba, z) = if S::WRITES_DEPTH {
-        let (rgba, z) = shader.shade_depth(t.material, &v, w, mask, z);
+    b.x = qx;
+    b.y = qy;
+    b.live = mask;
+    shader.shade_block(b, rgba, zout);
+    if S::WRITES_DEPTH {
         // late depth test on the program's depth (out-of-range depth is clipped)
-        let z = z.map(|d| if (0.0..=1.0).contains(&d) { d } else { f32::NAN });
-        depth_test(&mut mask, &z, depth);
-        (rgba, z)
+        for lane in 0..LANES {
+            let d = zout[lane];
+            let ok = (0.0..=1.0).contains(&d) && d.partial_cmp(&depth[index(lane)]) == Some(std::cmp::Ordering::Less);
+            if mask & (1 << lane) != 0 && ok {
+                let i = index(lane);
+                depth[i] = d;
+                color[i] = rgba[lane];
+            }
+        }
     } else {
-        (shader.shade(t.material, &v, w, mask), z)
-    };
-    for lane in 0..4 {
-        if mask & (1 << lane) != 0 {
-            let i = index(lane);
-            depth[i] = z[lane];
-            color[i] = rgba[lane];
+        for lane in 0..LANES {
+            if mask & (1 << lane) != 0 {
+                let i = index(lane);
+                depth[i] = b.z[lane];
+                color[i] = rgba[lane];
+            }
         }
     }
 }

@@ -206,7 +206,7 @@ pub fn adapters_report() -> String {
         let info = a.get_info();
         let f = a.features();
         let l = a.limits();
-        let _ = writeln!(s, "adapter {i}{}: {}", if i == 0 { " (chosen)" } else { "" }, describe(&info));
+        let _ = writeln!(s, "adapter {i}{}: {}", if i == 0 { " (--backend gpu)" } else { "" }, describe(&info));
         let _ = writeln!(s, "  driver: {} {}", info.driver, info.driver_info);
         let _ = writeln!(
             s,
@@ -225,5 +225,9 @@ pub fn adapters_report() -> String {
             l.max_buffer_size >> 20
         );
     }
+    let _ = match list.first().map(|a| a.get_info()) {
+        Some(info) if is_hardware(&info) => writeln!(s, "--backend auto: the GPU {}", describe(&info)),
+        _ => writeln!(s, "--backend auto: the CPU backend (no hardware GPU; a software rasterizer is slower than it)"),
+    };
     s
 }
