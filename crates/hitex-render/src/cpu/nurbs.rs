@@ -369,9 +369,14 @@ impl NurbsProgram<'_> {
         // find knot span once; every live lane must fall in it
         let su = find_span(nu - 1, 3, u[first], ku);
         let sv = find_span(nv - 1, 3, v[first], kv);
+        // a lane is in span s when k[s] ≤ x < k[s+1], or at the domain's end
+        // when s is the last non-empty span (find_span's end case)
+        let (u_last, v_last) = (find_span(nu - 1, 3, u1, ku) == su, find_span(nv - 1, 3, v1, kv) == sv);
+        let in_span =
+            |x: f32, k: &[f32], s: usize, last: bool, end: f32| (k[s] <= x && x < k[s + 1]) || (last && x >= end);
         for lane in 0..LANES {
             if b.live & (1 << lane) != 0
-                && (find_span(nu - 1, 3, u[lane], ku) != su || find_span(nv - 1, 3, v[lane], kv) != sv)
+                && !(in_span(u[lane], ku, su, u_last, u1) && in_span(v[lane], kv, sv, v_last, v1))
             {
                 return None;
             }
@@ -512,6 +517,21 @@ impl<S: pulp::Simd> R<S> {
         let z = self.k(0.0);
         self.0.select_f32s(self.0.less_than_f32s(z, a), a, z)
     }
+    /// `(d.xyz − s·d.w) / w`: a first derivative by the quotient rule.
+    #[inline(always)]
+    fn quotient(self, d: &[S::f32s; 4], s: [S::f32s; 3], w: S::f32s) -> [S::f32s; 3] {
+        [
+            self.div(self.sub(d[0], self.mul(s[0], d[3])), w),
+            self.div(self.sub(d[1], self.mul(s[1], d[3])), w),
+            self.div(self.sub(d[2], self.mul(s[2], d[3])), w),
+        ]
+    }
+    /// Row `i` of `m · (p, 1)` in glam's order: ((c0·x + c1·y) + c2·z) + c3·1.
+    #[inline(always)]
+    fn clip_row(self, m: &[[f32; 4]; 4], i: usize, p: [S::f32s; 3]) -> S::f32s {
+        let a = self.add(self.mul(self.k(m[0][i]), p[0]), self.mul(self.k(m[1][i]), p[1]));
+        self.add(self.add(a, self.mul(self.k(m[2][i]), p[2])), self.mul(self.k(m[3][i]), self.k(1.0)))
+    }
     #[inline(always)]
     fn dot(self, a: [S::f32s; 3], b: [S::f32s; 3]) -> S::f32s {
         self.add(self.add(self.mul(a[0], b[0]), self.mul(a[1], b[1])), self.mul(a[2], b[2]))
@@ -613,11 +633,8 @@ impl pulp::WithSimd for BicubicOp<'_> {
             // rational quotient rule
             let wt = a[0][3];
             let sp = [r.div(a[0][0], wt), r.div(a[0][1], wt), r.div(a[0][2], wt)];
-            let quot = |d: &[S::f32s; 4]| -> [S::f32s; 3] {
-                std::array::from_fn(|i| r.div(r.sub(d[i], r.mul(sp[i], d[3])), wt))
-            };
-            let s_u = quot(&a[1]);
-            let s_v = quot(&a[2]);
+            let s_u = r.quotient(&a[1], sp, wt);
+            let s_v = r.quotient(&a[2], sp, wt);
             // exact normal (degenerate lanes are redone per lane by the caller)
             let cr = [
                 r.sub(r.mul(s_u[1], s_v[2]), r.mul(s_u[2], s_v[1])),
@@ -642,14 +659,7 @@ impl pulp::WithSimd for BicubicOp<'_> {
                 *x = r.0.select_f32s(back, r.0.neg_f32s(*x), *x);
             }
             // depth of the exact point (glam's order: ((c0·x + c1·y) + c2·z) + c3·1)
-            let m = self.m;
-            let row = |i: usize| {
-                r.add(
-                    r.add(r.add(r.mul(r.k(m[0][i]), sp[0]), r.mul(r.k(m[1][i]), sp[1])), r.mul(r.k(m[2][i]), sp[2])),
-                    r.mul(r.k(m[3][i]), r.k(1.0)),
-                )
-            };
-            let depth = r.div(row(2), row(3));
+            let depth = r.div(r.clip_row(self.m, 2, sp), r.clip_row(self.m, 3, sp));
             // Blinn–Phong terms
             let l = [r.k(self.light.x), r.k(self.light.y), r.k(self.light.z)];
             let ndl = r.pos(r.dot(n, l));
