@@ -346,8 +346,9 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             for l in Layout::ALL {
                 match hitex_core::btf::Codebook::build(&btf, l) {
                     Ok(cb) => println!(
-                        "    {:<5} {:>5}x{:<5}x{:<3} texels, tiles {}x{}, {:>3} reads/pixel, {:.1} MiB",
+                        "    {:<5} (--layout {:<2}) {:>5}x{:<5}x{:<3} texels, tiles {}x{}, {:>3} reads/pixel, {:.1} MiB",
                         l.label(),
+                        l.name(),
                         cb.width,
                         cb.height,
                         cb.depth,
@@ -356,7 +357,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                         l.codebook_reads(),
                         cb.bytes() as f64 / 1048576.0
                     ),
-                    Err(e) => println!("    {:<5} not possible: {e}", l.label()),
+                    Err(e) => println!("    {:<5} (--layout {:<2}) not possible: {e}", l.label(), l.name()),
                 }
             }
             Ok(())
@@ -377,7 +378,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             ));
             save(&index_preview(&btf, &map), &preview)?;
             println!(
-                "wrote {} ({size}x{size}) in {secs:.2} s; neighbour error (feature distance to the coherent continuation): interior {:.4}, across the wrap edges {:.4} (ratio {:.2}; ≤ 1 means the tiling seam is invisible); preview {}",
+                "wrote {} ({size}x{size}, 16-bit sample coordinates: dark in an image viewer, see the preview) in {secs:.2} s; neighbour error (feature distance to the coherent continuation): interior {:.4}, across the wrap edges {:.4} (ratio {:.2}; ≤ 1 means the tiling seam is invisible); preview {}",
                 output.display(),
                 q.interior_error,
                 q.seam_error,

@@ -120,6 +120,9 @@ pub struct RenderArgs {
 
 fn parse_uv(s: &str) -> Result<(f64, f64), String> {
     let (a, b) = s.split_once(',').ok_or_else(|| format!("'{s}' is not U,V"))?;
+    if b.contains(',') {
+        return Err(format!("'{s}' has more than two values: give U,V"));
+    }
     let u: f64 = a.trim().parse().map_err(|_| format!("'{a}' is not a number"))?;
     let v: f64 = b.trim().parse().map_err(|_| format!("'{b}' is not a number"))?;
     if !(u.is_finite() && v.is_finite()) {

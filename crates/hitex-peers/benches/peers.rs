@@ -153,6 +153,45 @@ fn bench(c: &mut Criterion) {
         (p.map(|x| x as f64), n.map(|x| x as f64))
     });
     println!("hitex f32: max point deviation {a:.2e} of the model size, max normal deviation {b:.2e}");
+    // the block evaluator: 16 consecutive parameters of a row a call
+    let packed = hitex_render::nurbs::PackedNurbs::new(std::slice::from_ref(&s));
+    let blocks: Vec<([f32; 16], [f32; 16])> = ps
+        .chunks_exact(16)
+        .map(|c| (std::array::from_fn(|l| c[l].0 as f32), std::array::from_fn(|l| c[l].1 as f32)))
+        .collect();
+    let eval_blocks = |out: &mut Vec<([f64; 3], [f64; 3])>| {
+        let mut refused = 0;
+        for (u, v) in &blocks {
+            match hitex_render::cpu::nurbs::eval_bicubic_block(&packed, 0, u, v) {
+                Some(b) => out.extend((0..16).map(|l| {
+                    let p = [b.p[0][l], b.p[1][l], b.p[2][l]].map(|x| x as f64);
+                    let n = [b.n[0][l], b.n[1][l], b.n[2][l]].map(|x| x as f64);
+                    (p, n)
+                })),
+                None => {
+                    refused += 1;
+                    out.extend((0..16).map(|l| {
+                        let (p, n) = eval_f32(&f32s, u[l], v[l]);
+                        (p.map(|x| x as f64), n.map(|x| x as f64))
+                    }))
+                }
+            }
+        }
+        refused
+    };
+    let mut block_out = Vec::new();
+    let refused = eval_blocks(&mut block_out);
+    let (a, b) =
+        ps.iter().zip(&reference).zip(&block_out).fold((0.0f64, 0.0f64), |(dp, dn), ((_, (rp, rn)), (p, n))| {
+            let ep = (0..3).map(|k| (p[k] - rp[k]).abs()).fold(0.0, f64::max) / size;
+            let en = (0..3).map(|k| (n[k] - rn[k]).abs()).fold(0.0, f64::max);
+            (dp.max(ep), dn.max(en))
+        });
+    println!(
+        "hitex f32 block of 16 ({}): max point deviation {a:.2e} of the model size, max normal deviation {b:.2e}; {refused} of {} blocks straddle a knot and go per parameter",
+        hitex_render::cpu::simd::level(),
+        blocks.len()
+    );
     let (a, b) = dev(&|u, v| {
         let p = cv.point_at(u, v);
         let n = cv.normal_at(u, v).normalize();
@@ -180,6 +219,22 @@ fn bench(c: &mut Criterion) {
         bch.iter(|| {
             for &(u, v) in &ps {
                 black_box(eval_f32(&f32s, u as f32, v as f32));
+            }
+        })
+    });
+    g.bench_function("hitex f32 block of 16", |bch| {
+        bch.iter(|| {
+            for (u, v) in &blocks {
+                match hitex_render::cpu::nurbs::eval_bicubic_block(&packed, 0, u, v) {
+                    Some(b) => {
+                        black_box(b);
+                    }
+                    None => {
+                        for l in 0..16 {
+                            black_box(eval_f32(&f32s, u[l], v[l]));
+                        }
+                    }
+                }
             }
         })
     });
