@@ -158,6 +158,9 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 return Err(CliError::Input(format!("--range {r} must be finite and positive")));
             }
             let model = load_model(&a.model)?;
+            for w in &model.warnings {
+                eprintln!("hitex: warning: {}: {w}", model.name);
+            }
             let mut p = prepare(&model, a.density);
             p.mode = a.mode.into();
             p.bands = a.bands;

@@ -237,6 +237,15 @@ fn hypsometric(heights: &[f32], w: u32, h: u32) -> Result<Image, CliError> {
     .map_err(|e| CliError::Input(e.to_string()))
 }
 
+/// Reads an elevation model, saying on stderr what looks wrong with it.
+pub(crate) fn load_dem(path: &std::path::Path) -> Result<hitex_io::geotiff::GeoRaster, CliError> {
+    let dem = load_elevation(path)?;
+    for w in hitex_io::dem::elevation_warnings(&dem) {
+        eprintln!("hitex: warning: {}: {w}", path.display());
+    }
+    Ok(dem)
+}
+
 fn render(a: RenderArgs) -> Result<(), CliError> {
     for (name, v) in
         [("--exaggeration", a.exaggeration), ("--altitude", a.altitude), ("--pitch", a.pitch), ("--heading", a.heading)]
@@ -253,7 +262,7 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     }
     crate::image_out(&a.output)?;
     let bands = parse_band_list(&a.bands)?;
-    let mut dem = load_elevation(&a.dem)?;
+    let mut dem = load_dem(&a.dem)?;
     let filled = fill_holes(&mut dem);
     if filled > 0 {
         println!("filled {filled} missing elevation samples from their neighbours");

@@ -146,7 +146,7 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
                     path.display()
                 )));
             };
-            let dem = hitex_io::dem::load_elevation(d)?;
+            let dem = crate::terrain_cmd::load_dem(d)?;
             let (img, rgb) = crate::terrain_cmd::world_imagery(path, &dem, d)?;
             let name = format!("{} (world file)", path.display());
             let meta = meta_for(&img, &name);
@@ -158,7 +158,7 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
             let tiff = hitex_io::geotiff::GeoTiffWindows::open(path)?;
             let img = tiff.header.clone();
             if let Some(d) = &a.dem {
-                let dem = hitex_io::dem::load_elevation(d)?;
+                let dem = crate::terrain_cmd::load_dem(d)?;
                 crate::terrain_cmd::check_coregistered(&dem, &img, d, path)?;
             }
             let bands = crate::terrain_cmd::parse_bands(&a.bands, &img, path)?;
@@ -328,7 +328,7 @@ impl Relief {
         if !(exaggeration.is_finite() && exaggeration >= 0.0) {
             return Err(CliError::Input(format!("--exaggeration {exaggeration} must be finite and ≥ 0")));
         }
-        let mut dem = hitex_io::dem::load_elevation(&path)?;
+        let mut dem = crate::terrain_cmd::load_dem(&path)?;
         let filled = hitex_io::geotiff::fill_holes(&mut dem);
         if filled == (dem.width as usize * dem.height as usize) {
             return Err(CliError::Input(format!("{}: every elevation sample is nodata", path.display())));

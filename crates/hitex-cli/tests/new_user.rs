@@ -130,3 +130,46 @@ fn nurbs_export_keeps_trims_in_every_format() {
         assert_eq!(trims(&original), trims(&back), "{ext}");
     }
 }
+
+#[test]
+fn suspicious_inputs_are_named_on_stderr() {
+    let d = tmp("suspicious");
+    // a free-form OBJ cut off in the middle of its vertices
+    let full = d.join("t.obj");
+    assert!(hitex(&["nurbs", "export", "teapot", "-o", full.to_str().unwrap()]).status.success());
+    let text = std::fs::read_to_string(&full).unwrap();
+    let cut = d.join("cut.obj");
+    std::fs::write(&cut, &text[..text.len() - 300]).unwrap();
+    let out = d.join("o.png");
+    let o = hitex(&[
+        "nurbs",
+        "render",
+        cut.to_str().unwrap(),
+        "--size",
+        "32x24",
+        "--backend",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let e = error_lines(&o);
+    assert!(e.iter().any(|l| l.contains("warning") && l.contains("truncated")), "{e:?}");
+    // six-band imagery given as a DEM
+    let image = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/olinda/L7_ETMs.tif");
+    let o = hitex(&[
+        "terrain",
+        "render",
+        "--dem",
+        image,
+        "--size",
+        "32x24",
+        "--backend",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let e = error_lines(&o);
+    assert!(e.iter().any(|l| l.contains("6 bands") && l.contains("colour imagery")), "{e:?}");
+}

@@ -24,6 +24,22 @@ pub fn load_elevation(path: &Path) -> Result<GeoRaster, IoError> {
     parse_elevation(&bytes, path)
 }
 
+/// What looks wrong with a raster read as an elevation model, though it is
+/// readable: more than one band (heights are taken from band 1), or bands of
+/// whole numbers in 0–255 (colour imagery, not heights). One line each.
+pub fn elevation_warnings(r: &GeoRaster) -> Vec<String> {
+    let mut w = Vec::new();
+    if r.bands > 1 {
+        let bytes = r.data.iter().all(|&x| x.fract() == 0.0 && (0.0..=255.0).contains(&x));
+        w.push(format!(
+            "{} bands{}: an elevation model has one; heights are taken from band 1",
+            r.bands,
+            if bytes { " of whole numbers in 0–255 (this looks like colour imagery)" } else { "" }
+        ));
+    }
+    w
+}
+
 /// Parses an elevation model held in memory, choosing the format by the
 /// extension of `path` (which is also the file named in errors; an `.hgt`
 /// file's name gives its corner).

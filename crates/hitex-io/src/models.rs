@@ -190,8 +190,8 @@ pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
             let ext = p.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
             match ext.as_deref() {
                 Some("obj") => {
-                    let surfaces = crate::obj_freeform::load_obj_freeform(p)?;
-                    Ok(NurbsModel { name: path.to_string(), surfaces, warnings: vec![], repairs: vec![] })
+                    let (surfaces, warnings) = crate::obj_freeform::load_obj_freeform_warned(p)?;
+                    Ok(NurbsModel { name: path.to_string(), surfaces, warnings, repairs: vec![] })
                 }
                 Some("json") => {
                     let surfaces = crate::nurbs_json::load_nurbs_json(p)?;

@@ -41,13 +41,48 @@ enum Kind {
 
 /// Reads the free-form surfaces of an OBJ file.
 pub fn load_obj_freeform(path: &Path) -> Result<Vec<IgesSurface>, IoError> {
+    load_obj_freeform_warned(path).map(|(s, _)| s)
+}
+
+/// [`load_obj_freeform`], with what looks wrong though it parses (see
+/// [`obj_freeform_warnings`]).
+pub fn load_obj_freeform_warned(path: &Path) -> Result<(Vec<IgesSurface>, Vec<String>), IoError> {
     let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
     let meta = std::fs::metadata(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
     if meta.len() > MAX_FREEFORM_FILE_BYTES {
         return Err(fmt(format!("file of {} bytes exceeds the {MAX_FREEFORM_FILE_BYTES}-byte limit", meta.len())));
     }
     let bytes = std::fs::read(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
-    parse_obj_freeform(&String::from_utf8_lossy(&bytes)).map_err(fmt)
+    let text = String::from_utf8_lossy(&bytes);
+    let surfaces = parse_obj_freeform(&text).map_err(fmt)?;
+    Ok((surfaces, obj_freeform_warnings(&text)))
+}
+
+/// Signs of a truncated file in OBJ text that parses: a `surf` or `curv2d`
+/// block still open at the end (it is dropped), or a last line without a
+/// line end. One line each, naming the line.
+pub fn obj_freeform_warnings(text: &str) -> Vec<String> {
+    let mut w = Vec::new();
+    let mut open: Option<(usize, &str)> = None;
+    let mut lines = 0;
+    for (i, raw) in text.lines().enumerate() {
+        lines = i + 1;
+        let line = raw.split('#').next().unwrap_or("");
+        match line.split_whitespace().next() {
+            Some(tag @ ("surf" | "curv2d")) => open = Some((i + 1, tag)),
+            Some("end") => open = None,
+            _ => {}
+        }
+    }
+    if let Some((at, tag)) = open {
+        w.push(format!(
+            "the file ends inside the {tag} block of line {at} (no 'end'): that block is dropped; the file may be truncated"
+        ));
+    }
+    if !text.is_empty() && !text.ends_with('\n') {
+        w.push(format!("line {lines} has no line end: the file may be truncated"));
+    }
+    w
 }
 
 /// Parses OBJ text; errors carry the line number.
@@ -315,6 +350,15 @@ pub fn to_obj_freeform(surfaces: &[IgesSurface]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn truncation_is_reported() {
+        assert!(obj_freeform_warnings(QUAD).is_empty(), "{:?}", obj_freeform_warnings(QUAD));
+        let cut = &QUAD[..QUAD.rfind("end").unwrap()];
+        let w = obj_freeform_warnings(cut.trim_end());
+        assert_eq!(w.len(), 2, "{w:?}");
+        assert!(w[0].contains("ends inside the surf block") && w[1].contains("no line end"), "{w:?}");
+    }
 
     #[test]
     fn round_trip_keeps_surfaces_exactly_and_trims_on_their_polylines() {
