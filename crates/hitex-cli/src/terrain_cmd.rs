@@ -442,28 +442,34 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
         pyr.level_count()
     );
     // per-pixel trilinear: the reference
+    let pb = crate::btf_cmd::bar(views.len() as u64 * 5, "spans");
     let mut times = Vec::new();
     let mut reference: Vec<RgbaFrame> = Vec::new();
     for v in &views {
         let t = Instant::now();
         reference.push(render_trilinear(&pyr, v, wrap));
         times.push(t.elapsed().as_secs_f64() * 1e3);
+        pb.inc(1);
     }
-    println!(
-        "{:<10} {:>9} {:>10} {:>8} {:>10} {:>12} {:>10} {:>8}",
-        "case", "ms/frame", "PSNR dB", "SSIM", "conflicts", "accesses", "words", "mean λ"
-    );
-    println!(
-        "{:<10} {:>9.2} {:>10} {:>8} {:>10} {:>12} {:>10} {:>8}",
-        "trilinear",
-        crate::bench::median(&mut times),
-        "-",
-        "-",
-        "-",
-        "-",
-        "-",
-        "-"
-    );
+    pb.suspend(|| {
+        println!(
+            "{:<10} {:>9} {:>10} {:>8} {:>10} {:>12} {:>10} {:>8}",
+            "case", "ms/frame", "PSNR dB", "SSIM", "conflicts", "accesses", "words", "mean λ"
+        )
+    });
+    pb.suspend(|| {
+        println!(
+            "{:<10} {:>9.2} {:>10} {:>8} {:>10} {:>12} {:>10} {:>8}",
+            "trilinear",
+            crate::bench::median(&mut times),
+            "-",
+            "-",
+            "-",
+            "-",
+            "-",
+            "-"
+        )
+    });
     let cases = [
         ("span3", SpanScheme::Banks3x3, SpanFilter::Bilinear),
         ("span4", SpanScheme::Banks4x4, SpanFilter::Bilinear),
@@ -484,26 +490,30 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
             p += psnr(r, &f);
             s += ssim(r, &f);
             frame = Some(f);
+            pb.inc(1);
         }
         let n = views.len() as f64;
         total_conflicts += banks.conflicts;
-        println!(
-            "{label:<10} {:>9.2} {:>10.2} {:>8.4} {:>10} {:>12} {:>10} {:>8.2}",
-            crate::bench::median(&mut times),
-            p / n,
-            s / n,
-            banks.conflicts,
-            banks.accesses,
-            banks.words,
-            banks.mean_level()
-        );
+        pb.suspend(|| {
+            println!(
+                "{label:<10} {:>9.2} {:>10.2} {:>8.4} {:>10} {:>12} {:>10} {:>8.2}",
+                crate::bench::median(&mut times),
+                p / n,
+                s / n,
+                banks.conflicts,
+                banks.accesses,
+                banks.words,
+                banks.mean_level()
+            )
+        });
         if banks.guard_raises > 0 {
-            println!("  ({} spans raised by the rounding guard)", banks.guard_raises);
+            pb.suspend(|| println!("  ({} spans raised by the rounding guard)", banks.guard_raises));
         }
         if filter == SpanFilter::Bilinear {
             last.extend(frame);
         }
     }
+    pb.finish_and_clear();
     println!("total bank conflicts: {total_conflicts}");
     // the rule is tight: one level finer (on 3×3 banks: eq. (9) taken literally) conflicts
     for scheme in [SpanScheme::Banks3x3, SpanScheme::Banks4x4] {
