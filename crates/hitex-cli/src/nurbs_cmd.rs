@@ -196,7 +196,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             if matches!(p.mode, NurbsMode::Gauss | NurbsMode::Mean) {
                 let range = if p.mode == NurbsMode::Gauss { p.curvature_range[0] } else { p.curvature_range[1] };
                 println!(
-                    "colour ramp: blue −{range:.4} … white 0 … red +{range:.4} (1/length{})",
+                    "colour ramp: blue −{range:.4} … white 0 … red +{range:.4} (1/length{}; ± twice the area-weighted 75th percentile over the surface unless --range)",
                     if p.mode == NurbsMode::Gauss { "²" } else { "" }
                 );
             }

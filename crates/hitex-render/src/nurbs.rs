@@ -235,7 +235,8 @@ pub struct PreparedNurbs {
     pub bands: u32,
     /// Zebra stripes over 180°.
     pub stripes: u32,
-    /// Curvature mapped to full colour on the ramp: [Gaussian, mean].
+    /// Curvature mapped to full colour on the ramp: [Gaussian, mean]; by default
+    /// twice the area-weighted 75th percentile of |K| and |H| over the surface.
     pub curvature_range: [f32; 2],
     /// Linear background.
     pub background: Vec3,
@@ -312,25 +313,43 @@ impl PreparedNurbs {
             far: dist + radius * 1.5,
         };
         let packed = PackedNurbs::new(&surfaces);
-        // curvature ranges: twice the 75th percentile of |K| and |H| over a
-        // 6×6 sample grid per patch (robust against small, sharply curved parts)
+        // curvature ranges: twice the area-weighted 75th percentile of |K| and
+        // |H| over a 6×6 sample grid per patch, each sample weighted by the
+        // surface area it stands for (|S_u × S_v| du dv), so that many small,
+        // sharply curved patches (fillets, rims) do not set the scale of the
+        // large ones
         let mut ks = Vec::new();
         let mut hs = Vec::new();
         for s in &surfaces {
             let ((u0, u1), (v0, v1)) = s.domain();
+            let cell = (u1 - u0) * (v1 - v0) / 36.0;
             for k in 0..36 {
                 let u = u0 + (u1 - u0) * ((k % 6) as f64 + 0.5) / 6.0;
                 let v = v0 + (v1 - v0) * ((k / 6) as f64 + 0.5) / 6.0;
                 let c = s.curvature(u, v);
-                if c.gaussian.is_finite() && c.mean.is_finite() {
-                    ks.push(c.gaussian.abs());
-                    hs.push(c.mean.abs());
+                let d = s.derivatives(u, v, 1);
+                let (a, b) = (d.d[1][0], d.d[0][1]);
+                let n = [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+                let area = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() * cell;
+                if c.gaussian.is_finite() && c.mean.is_finite() && area.is_finite() {
+                    ks.push((c.gaussian.abs(), area));
+                    hs.push((c.mean.abs(), area));
                 }
             }
         }
-        let pick = |mut v: Vec<f64>| -> f32 {
-            v.sort_by(|a, b| a.total_cmp(b));
-            (2.0 * v.get(v.len() * 3 / 4).copied().unwrap_or(0.5)).max(1e-12) as f32
+        let pick = |mut v: Vec<(f64, f64)>| -> f32 {
+            v.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let total: f64 = v.iter().map(|x| x.1).sum();
+            let mut acc = 0.0;
+            let mut at = v.last().map_or(0.5, |x| x.0);
+            for (value, w) in &v {
+                acc += w;
+                if acc >= 0.75 * total {
+                    at = *value;
+                    break;
+                }
+            }
+            (2.0 * at).max(1e-12) as f32
         };
         let curvature_range = [pick(ks), pick(hs)];
         Self {
