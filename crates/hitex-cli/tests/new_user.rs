@@ -11,6 +11,12 @@ fn teapot() -> String {
     concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/teapot.igs").to_string()
 }
 
+/// Runs `args` as a small CPU render into `out`.
+fn tiny(args: &[&str], out: &std::path::Path) -> std::process::Output {
+    let tail = ["--size", "32x24", "--backend", "cpu", "-o", out.to_str().unwrap()];
+    hitex(&[args, &tail[..]].concat())
+}
+
 fn holed() -> String {
     concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/holed-square.igs").to_string()
 }
@@ -70,12 +76,12 @@ fn negative_numbers_are_numbers() {
 fn the_output_extension_names_the_format() {
     let d = tmp("extension");
     let jpg = d.join("k.jpg");
-    let o = hitex(&["btf", "render", "knit", "--size", "32x24", "--backend", "cpu", "-o", jpg.to_str().unwrap()]);
+    let o = tiny(&["btf", "render", "knit"], &jpg);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let bytes = std::fs::read(&jpg).unwrap();
     assert_eq!(&bytes[..3], &[0xff, 0xd8, 0xff], "a .jpg holds JPEG");
     let png = d.join("k.PNG");
-    let o = hitex(&["btf", "render", "knit", "--size", "32x24", "--backend", "cpu", "-o", png.to_str().unwrap()]);
+    let o = tiny(&["btf", "render", "knit"], &png);
     assert!(o.status.success());
     assert_eq!(&std::fs::read(&png).unwrap()[..4], b"\x89PNG");
     // refused before any work, nothing written
@@ -85,8 +91,7 @@ fn the_output_extension_names_the_format() {
     assert!(!txt.exists());
     // missing folders are created, as for every output
     let nested = d.join("a/b/c.png");
-    let o =
-        hitex(&["nurbs", "render", "teapot", "--size", "32x24", "--backend", "cpu", "-o", nested.to_str().unwrap()]);
+    let o = tiny(&["nurbs", "render", "teapot"], &nested);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(nested.is_file());
 }
@@ -141,34 +146,13 @@ fn suspicious_inputs_are_named_on_stderr() {
     let cut = d.join("cut.obj");
     std::fs::write(&cut, &text[..text.len() - 300]).unwrap();
     let out = d.join("o.png");
-    let o = hitex(&[
-        "nurbs",
-        "render",
-        cut.to_str().unwrap(),
-        "--size",
-        "32x24",
-        "--backend",
-        "cpu",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = tiny(&["nurbs", "render", cut.to_str().unwrap()], &out);
     assert!(o.status.success());
     let e = error_lines(&o);
     assert!(e.iter().any(|l| l.contains("warning") && l.contains("truncated")), "{e:?}");
     // six-band imagery given as a DEM
     let image = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/olinda/L7_ETMs.tif");
-    let o = hitex(&[
-        "terrain",
-        "render",
-        "--dem",
-        image,
-        "--size",
-        "32x24",
-        "--backend",
-        "cpu",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = tiny(&["terrain", "render", "--dem", image], &out);
     assert!(o.status.success());
     let e = error_lines(&o);
     assert!(e.iter().any(|l| l.contains("6 bands") && l.contains("colour imagery")), "{e:?}");

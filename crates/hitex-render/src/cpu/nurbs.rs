@@ -893,26 +893,28 @@ mod tests {
     use super::*;
     use hitex_core::nurbs::NurbsSurface;
 
-    #[test]
-    fn block_evaluator_equals_the_per_parameter_one() {
-        let (nu, nv) = (6, 5);
+    /// A rational 6×5 control net with varied weights.
+    fn net_6x5() -> Vec<[f64; 4]> {
         let mut pts = Vec::new();
-        for j in 0..nv {
-            for i in 0..nu {
+        for j in 0..5 {
+            for i in 0..6 {
                 let (x, y) = (i as f64, j as f64);
                 pts.push([x, y, (x * 0.9).sin() * (y * 0.7).cos(), 1.0 + 0.3 * ((i + j) % 3) as f64]);
             }
         }
-        let s = NurbsSurface::new(
-            3,
-            3,
-            nu,
-            nv,
-            vec![0.0, 0.0, 0.0, 0.0, 0.3, 0.55, 1.0, 1.0, 1.0, 1.0],
-            vec![0.0, 0.0, 0.0, 0.0, 0.6, 1.0, 1.0, 1.0, 1.0],
-            pts,
-        )
-        .unwrap();
+        pts
+    }
+
+    /// A rational bicubic on that net with interior knots u 0.3, 0.55 and v 0.6.
+    fn bicubic_6x5() -> NurbsSurface {
+        let knots_u = vec![0.0, 0.0, 0.0, 0.0, 0.3, 0.55, 1.0, 1.0, 1.0, 1.0];
+        let knots_v = vec![0.0, 0.0, 0.0, 0.0, 0.6, 1.0, 1.0, 1.0, 1.0];
+        NurbsSurface::new(3, 3, 6, 5, knots_u, knots_v, net_6x5()).unwrap()
+    }
+
+    #[test]
+    fn block_evaluator_equals_the_per_parameter_one() {
+        let s = bicubic_6x5();
         let packed = PackedNurbs::new(&[s]);
         let (mut taken, mut refused) = (0, 0);
         for row in 0..40 {
@@ -940,17 +942,7 @@ mod tests {
     /// depth of every lane, in the three modes the block path takes.
     #[test]
     fn block_bicubic_equals_the_per_lane_program_bit_for_bit() {
-        let (nu, nv) = (6, 5);
-        let mut pts = Vec::new();
-        for j in 0..nv {
-            for i in 0..nu {
-                let (x, y) = (i as f64, j as f64);
-                pts.push([x, y, (x * 0.9).sin() * (y * 0.7).cos(), 1.0 + 0.3 * ((i + j) % 3) as f64]);
-            }
-        }
-        let knots_u = vec![0.0, 0.0, 0.0, 0.0, 0.3, 0.55, 1.0, 1.0, 1.0, 1.0];
-        let knots_v = vec![0.0, 0.0, 0.0, 0.0, 0.6, 1.0, 1.0, 1.0, 1.0];
-        let s = NurbsSurface::new(3, 3, nu, nv, knots_u, knots_v, pts).unwrap();
+        let s = bicubic_6x5();
         let prepared = crate::nurbs::PreparedNurbs::new(vec![s.clone()], &[s.domain()], 4);
         let cam = hitex_core::scene::Camera::new(
             Vec3::new(2.5, -6.0, 5.0),
@@ -1006,22 +998,14 @@ mod tests {
 
     #[test]
     fn packed_f32_evaluation_tracks_the_f64_reference() {
-        let (nu, nv) = (6, 5);
-        let mut pts = Vec::new();
-        for j in 0..nv {
-            for i in 0..nu {
-                let (x, y) = (i as f64, j as f64);
-                pts.push([x, y, (x * 0.9).sin() * (y * 0.7).cos(), 1.0 + 0.3 * ((i + j) % 3) as f64]);
-            }
-        }
         let s = NurbsSurface::new(
             3,
             2,
-            nu,
-            nv,
+            6,
+            5,
             vec![0.0, 0.0, 0.0, 0.0, 0.3, 0.55, 1.0, 1.0, 1.0, 1.0],
             vec![0.0, 0.0, 0.0, 0.4, 0.6, 1.0, 1.0, 1.0],
-            pts,
+            net_6x5(),
         )
         .unwrap();
         let packed = PackedNurbs::new(&[s.clone(), s.elevate(true)]);
