@@ -300,14 +300,17 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
      -> Result<(Frame, f64), CliError> {
         let mut p = crate::nurbs_cmd::prepare(model, density);
         p.mode = mode;
-        let cam = p.camera.orbit(turn);
+        let cam = if crate::nurbs_cmd::has_legend(mode) {
+            // framed clear of the legend strip
+            let view = hitex_render::nurbs::ModelView { turn_deg: turn.to_degrees(), ..Default::default() };
+            p.view_camera(&view, 1.0, crate::nurbs_cmd::view_window(side, side, true))
+        } else {
+            p.camera.orbit(turn)
+        };
         let t = Instant::now();
         let mut f = r.render_nurbs(&p, &cam, side, side)?;
         let ms = t.elapsed().as_secs_f64() * 1e3;
-        if matches!(mode, NurbsMode::Gauss | NurbsMode::Mean) {
-            let range = if mode == NurbsMode::Gauss { p.curvature_range[0] } else { p.curvature_range[1] };
-            hitex_render::legend::diverging_legend(&mut f, range);
-        }
+        crate::nurbs_cmd::mode_legend(&mut f, &p, false);
         Ok((f, ms))
     };
     let (a, ma) = nurbs(&teapot, NurbsMode::Shaded, 8, 0.0)?;

@@ -3,7 +3,7 @@
 use crate::{AnyRenderer, Backend, CliError, parse_size, save};
 use clap::{Args, Subcommand, ValueEnum};
 use hitex_io::models::{NurbsModel, load_model};
-use hitex_render::nurbs::{NurbsMode, PreparedNurbs};
+use hitex_render::nurbs::{ModelView, NurbsMode, PreparedNurbs, UpAxis};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -113,9 +113,39 @@ pub struct RenderArgs {
     /// exact degree elevation (the paper's design: one kernel per prepared degree).
     #[arg(long)]
     pub elevate: bool,
-    /// Turn the camera about the model's vertical axis, degrees.
+    /// Turn the camera about the model's up axis, degrees.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub turn: f32,
+    /// Elevation of the eye above the model's horizontal plane, degrees in −89…89.
+    #[arg(long, default_value_t = ModelView::ELEVATION_DEG, allow_negative_numbers = true)]
+    pub elevation: f32,
+    /// The model's up axis: auto (its thinnest extent), x, y, z, -x, -y or -z.
+    #[arg(long, default_value = "auto", value_parser = UpAxis::parse, allow_hyphen_values = true)]
+    pub up: UpAxis,
+}
+
+/// Draws the legend of `p`'s display mode, if it has one: the curvature ramp
+/// with its name, units and how its range was chosen.
+pub fn mode_legend(f: &mut hitex_render::Frame, p: &PreparedNurbs, user_range: bool) {
+    let (name, units, rule, range) = match p.mode {
+        NurbsMode::Gauss => ("GAUSS K", "1/LENGTH²", "±2×P75|K|", p.curvature_range[0]),
+        NurbsMode::Mean => ("MEAN H", "1/LENGTH", "±2×P75|H|", p.curvature_range[1]),
+        _ => return,
+    };
+    hitex_render::legend::diverging_legend(f, range, &[name, units, if user_range { "±RANGE" } else { rule }]);
+}
+
+/// Whether `mode` draws a legend (and so a view keeps its strip clear).
+pub fn has_legend(mode: NurbsMode) -> bool {
+    matches!(mode, NurbsMode::Gauss | NurbsMode::Mean)
+}
+
+/// The window of normalised device coordinates a model is framed into: a
+/// margin all round, and clear of the legend strip when there is one.
+pub fn view_window(width: u32, height: u32, legend: bool) -> [f32; 4] {
+    let strip = if legend { hitex_render::legend::legend_width(width, height) } else { 0 };
+    let right = 1.0 - 2.0 * strip as f32 / width.max(1) as f32;
+    [-0.94, right - 0.06, -0.94, 0.94]
 }
 
 fn parse_uv(s: &str) -> Result<(f64, f64), String> {
@@ -152,6 +182,9 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             if !a.turn.is_finite() {
                 return Err(CliError::Input(format!("--turn {} must be finite (degrees)", a.turn)));
             }
+            if !(a.elevation.is_finite() && a.elevation.abs() <= 89.0) {
+                return Err(CliError::Input(format!("--elevation {} must be in −89…89 degrees", a.elevation)));
+            }
             if let Some(r) = a.range
                 && !(r.is_finite() && r > 0.0)
             {
@@ -174,15 +207,15 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 let n = p.elevate_to_prepared();
                 println!("elevated {n} patches to the nearest prepared degree (3 or 5)");
             }
-            let cam = p.camera.orbit(a.turn.to_radians());
+            let up = if a.up == UpAxis::Auto { p.detect_up() } else { a.up };
+            let view = ModelView { up, turn_deg: a.turn, elevation_deg: a.elevation };
+            let window = view_window(a.size.0, a.size.1, has_legend(p.mode));
+            let cam = p.view_camera(&view, a.size.0 as f32 / a.size.1 as f32, window);
             let mut r = AnyRenderer::open(a.backend.into())?;
             let t = Instant::now();
             let mut f = r.render_nurbs(&p, &cam, a.size.0, a.size.1)?;
             let ms = t.elapsed().as_secs_f64() * 1e3;
-            if matches!(p.mode, NurbsMode::Gauss | NurbsMode::Mean) {
-                let range = if p.mode == NurbsMode::Gauss { p.curvature_range[0] } else { p.curvature_range[1] };
-                hitex_render::legend::diverging_legend(&mut f, range);
-            }
+            mode_legend(&mut f, &p, a.range.is_some());
             save(&f, &a.output)?;
             println!(
                 "wrote {} ({}x{}, {} patches, mode {}, {}) in {ms:.1} ms",
@@ -193,11 +226,24 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 p.mode.name(),
                 r.name()
             );
+            println!(
+                "view: up {}{}, turn {}°, elevation {}°, fitted to the frame",
+                up.name(),
+                if a.up == UpAxis::Auto { " (the model's thinnest extent; --up to change)" } else { "" },
+                a.turn,
+                a.elevation
+            );
             if matches!(p.mode, NurbsMode::Gauss | NurbsMode::Mean) {
                 let range = if p.mode == NurbsMode::Gauss { p.curvature_range[0] } else { p.curvature_range[1] };
+                let v = hitex_render::legend::format_value(range);
                 println!(
-                    "colour ramp: blue −{range:.4} … white 0 … red +{range:.4} (1/length{}; ± twice the area-weighted 75th percentile over the surface unless --range)",
-                    if p.mode == NurbsMode::Gauss { "²" } else { "" }
+                    "colour ramp: blue −{v} … white 0 … red +{v} (1/length{}; {})",
+                    if p.mode == NurbsMode::Gauss { "²" } else { "" },
+                    if a.range.is_some() {
+                        "as --range gave"
+                    } else {
+                        "± twice the area-weighted 75th percentile over the surface; --range to set"
+                    }
                 );
             }
             Ok(())

@@ -268,6 +268,10 @@ fn open(input: &str, mode: Option<&str>, aspect: f32) -> Result<Content, CliErro
             if let Some(m) = mode {
                 prepared.mode = pick(&NURBS_MODES, m)?;
             }
+            // the model's up axis and a view fitted to the window, clear of a legend
+            let legend = crate::nurbs_cmd::has_legend(prepared.mode);
+            let window = crate::nurbs_cmd::view_window((aspect * 600.0) as u32, 600, legend);
+            prepared.camera = prepared.view_camera(&Default::default(), aspect, window);
             let orbit = Orbit::new(prepared.camera);
             Ok(Content::Nurbs { prepared: Box::new(prepared), orbit, light: [45.0, 40.0], light_moved: false })
         }
@@ -324,10 +328,7 @@ impl Content {
                     prepared.light = Some(light_dir(light[0], light[1]));
                 }
                 let mut f = r.render_nurbs(prepared, &orbit.camera(), w, h)?;
-                if matches!(prepared.mode, NurbsMode::Gauss | NurbsMode::Mean) {
-                    let slot = if prepared.mode == NurbsMode::Gauss { 0 } else { 1 };
-                    hitex_render::legend::diverging_legend(&mut f, prepared.curvature_range[slot]);
-                }
+                crate::nurbs_cmd::mode_legend(&mut f, prepared, false);
                 Ok(f)
             }
             Content::Btf(b) => {

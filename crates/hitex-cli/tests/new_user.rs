@@ -157,3 +157,101 @@ fn suspicious_inputs_are_named_on_stderr() {
     let e = error_lines(&o);
     assert!(e.iter().any(|l| l.contains("6 bands") && l.contains("colour imagery")), "{e:?}");
 }
+
+/// Pixels of `path` that differ from its top-left (background) pixel.
+fn model_pixels(path: &std::path::Path) -> (image::RgbImage, Vec<(u32, u32)>) {
+    let img = image::open(path).unwrap().to_rgb8();
+    let bg = *img.get_pixel(0, 0);
+    let px = img.enumerate_pixels().filter(|(_, _, p)| **p != bg).map(|(x, y, _)| (x, y)).collect();
+    (img, px)
+}
+
+#[test]
+fn every_view_is_framed_and_the_legend_stays_clear() {
+    let d = tmp("framing");
+    // at every turn and elevation the whole model is in the frame, not touching its edges
+    for (turn, elevation) in [("0", "23.5"), ("90", "23.5"), ("180", "-40"), ("270", "80")] {
+        let out = d.join(format!("t{turn}.png"));
+        let o = hitex(&[
+            "nurbs",
+            "render",
+            "teapot",
+            "--turn",
+            turn,
+            "--elevation",
+            elevation,
+            "--size",
+            "160x120",
+            "--backend",
+            "cpu",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(String::from_utf8_lossy(&o.stdout).contains("view: up +Z"), "{}", String::from_utf8_lossy(&o.stdout));
+        let (img, px) = model_pixels(&out);
+        assert!(px.len() > 2000, "turn {turn}: {} model pixels", px.len());
+        let touches = px.iter().any(|&(x, y)| x == 0 || y == 0 || x + 1 == img.width() || y + 1 == img.height());
+        assert!(!touches, "turn {turn} elevation {elevation}: the model reaches the frame's edge");
+    }
+    // a curvature map: the model left of the legend strip, the legend inside it
+    let out = d.join("mean.png");
+    let o = hitex(&[
+        "nurbs",
+        "render",
+        "teapot",
+        "--mode",
+        "mean",
+        "--size",
+        "320x240",
+        "--backend",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let strip = hitex_render::legend::legend_width(320, 240);
+    assert!(strip > 0);
+    let plain = d.join("mean-plain.png");
+    let o = hitex(&[
+        "nurbs",
+        "render",
+        "teapot",
+        "--mode",
+        "shaded",
+        "--size",
+        "320x240",
+        "--backend",
+        "cpu",
+        "-o",
+        plain.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let (_, px) = model_pixels(&out);
+    assert!(px.iter().any(|&(x, _)| x >= 320 - strip), "no legend drawn");
+    // the framing for a legend leaves the strip and a margin free: the shaded
+    // model (no legend) fills wider than the curvature one
+    let right = |v: &[(u32, u32)]| v.iter().map(|p| p.0).filter(|&x| x < 320 - strip).max().unwrap();
+    let (_, shaded) = model_pixels(&plain);
+    assert!(right(&px) + 4 < 320 - strip, "the model runs into the legend strip");
+    assert!(right(&shaded) > right(&px), "the legend's strip was not kept clear");
+    // an up axis the user names; bad values refused
+    let o = tiny(&["nurbs", "render", "teapot", "--up", "-y"], &d.join("y.png"));
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("up -Y"));
+    for bad in [vec!["--up", "w"], vec!["--elevation", "90"], vec!["--elevation", "nan"]] {
+        let o = tiny(&[&["nurbs", "render", "teapot"], &bad[..]].concat(), &d.join("bad.png"));
+        assert_eq!(o.status.code(), Some(2), "{bad:?}");
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(e.contains(bad[0]) && e.lines().count() <= 4, "{bad:?}: {e}");
+    }
+}
+
+#[test]
+fn tiny_curvature_ranges_keep_their_digits() {
+    let d = tmp("tiny-range");
+    let o = tiny(&["nurbs", "render", "teapot", "--mode", "gauss", "--range", "1e-6"], &d.join("g.png"));
+    assert!(o.status.success());
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("1.00e-6") && !out.contains("0.0000"), "{out}");
+}

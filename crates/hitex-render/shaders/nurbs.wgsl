@@ -497,6 +497,66 @@ fn trimmed_away(pid: i32, u: f32, v: f32) -> bool {
     return !inside;
 }
 
+// how far past its boundary (domain side or trimming loop) a fragment is
+// still drawn, in units of its parameters' fwidth (about a pixel): the
+// trimming loops of faces meeting along an edge are different polylines of
+// one curve; drawing each a little past its loop, behind the other, closes
+// the seam (untrimmed sides are closed by the tessellation's boundary fans)
+const SEAM_REACH: f32 = 0.75;
+
+fn near_trim(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> bool {
+    if !(fu > 0.0 && fv > 0.0) {
+        return false;
+    }
+    let sx = 1.0 / (SEAM_REACH * fu);
+    let sy = 1.0 / (SEAM_REACH * fv);
+    let n = i32(textureLoad(trims, vec2<i32>(0, pid), 0).x);
+    for (var i = 1; i <= n; i = i + 1) {
+        let e = textureLoad(trims, vec2<i32>(i, pid), 0);
+        let a = vec2<f32>((e.x - u) * sx, (e.y - v) * sy);
+        let d = vec2<f32>((e.z - e.x) * sx, (e.w - e.y) * sy);
+        let dd = dot(d, d);
+        var k = 0.0;
+        if dd > 0.0 {
+            k = clamp(-dot(a, d) / dd, 0.0, 1.0);
+        }
+        let p = a + k * d;
+        if dot(p, p) <= 1.0 {
+            return true;
+        }
+    }
+    return false;
+}
+
+// where a fragment lies against its patch's boundary: 0 inside, 1 past it
+// within the seam reach (drawn behind any surface truly there), 2 beyond
+// (discarded)
+fn reach(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> u32 {
+    let head = textureLoad(control, vec2<i32>(0, pid), 0);
+    let u0 = knot(0, pid, i32(head.x));
+    let u1 = knot(0, pid, i32(head.z));
+    let v0 = knot(1, pid, i32(head.y));
+    let v1 = knot(1, pid, i32(head.w));
+    let ou = max(u0 - u, u - u1);
+    let ov = max(v0 - v, v - v1);
+    if ou > SEAM_REACH * fu || ov > SEAM_REACH * fv {
+        return 2u;
+    }
+    if trimmed_away(pid, u, v) {
+        if near_trim(pid, u, v, fu, fv) {
+            return 1u;
+        }
+        return 2u;
+    }
+    if ou > 0.0 || ov > 0.0 {
+        return 1u;
+    }
+    return 0u;
+}
+
+// seam fragments are drawn as if this much farther from the eye
+const SEAM_DEPTH_SCALE: f32 = 1.005;
+
 fn on_boundary(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> bool {
     let head = textureLoad(control, vec2<i32>(0, pid), 0);
     let u0 = knot(0, pid, i32(head.x));
@@ -528,8 +588,13 @@ fn fs_main(in: VsOut) -> FsOut {
     // fine derivatives for the boundary overlay, taken in uniform control flow
     let fu = abs(dpdxFine(in.u)) + abs(dpdyFine(in.u));
     let fv = abs(dpdxFine(in.v)) + abs(dpdyFine(in.v));
-    // trimmed away: discarded
-    if trimmed_away(pid, in.u, in.v) {
+    // past the domain or trimmed away, beyond the seam reach: discarded
+    var at = reach(pid, in.u, in.v, fu, fv);
+    // boundary-fan fragments (patch index marked by a quarter) are seam fragments
+    if at == 0u && abs(in.patch_id - round(in.patch_id)) > 0.125 {
+        at = 1u;
+    }
+    if at == 2u {
         discard;
     }
     let second = mode == 3u || mode == 4u;
@@ -542,8 +607,12 @@ fn fs_main(in: VsOut) -> FsOut {
     if dot(n, view) < 0.0 {
         n = -n;
     }
-    // depth of the exact point
-    let clip = frame.view_proj * vec4<f32>(e.s, 1.0);
+    // depth of the exact point (of a seam fragment: pushed back)
+    var at_depth = e.s;
+    if at == 1u {
+        at_depth = frame.camera.xyz + (e.s - frame.camera.xyz) * SEAM_DEPTH_SCALE;
+    }
+    let clip = frame.view_proj * vec4<f32>(at_depth, 1.0);
     var out: FsOut;
     out.depth = clip.z / clip.w;
     let light = frame.light.xyz;

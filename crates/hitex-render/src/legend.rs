@@ -1,6 +1,8 @@
-//! A colour legend drawn into a rendered frame: a vertical ramp with its
-//! range written beside it in a small built-in pixel font (digits, sign,
-//! point, exponent), so curvature maps carry their scale.
+//! Colour legends drawn into a rendered frame: a vertical ramp with its
+//! range written beside it and a title with units above it, in a small
+//! built-in 3×5 pixel font (digits, capitals, a few signs), so analysis
+//! images carry their scale. Legends sit in a strip at the right edge whose
+//! width [`legend_width`] gives, so that a view can be framed clear of it.
 
 use crate::Frame;
 use crate::cpu::nurbs::diverging;
@@ -23,6 +25,46 @@ fn glyph(c: char) -> Option<[u8; 5]> {
         '.' => [0, 0, 0, 0, 2],
         'e' => [0, 7, 7, 4, 7],
         ' ' => [0; 5],
+        '/' => [1, 1, 2, 4, 4],
+        '(' => [1, 2, 2, 2, 1],
+        ')' => [4, 2, 2, 2, 4],
+        ',' => [0, 0, 0, 2, 4],
+        ':' => [0, 2, 0, 2, 0],
+        '=' => [0, 7, 0, 7, 0],
+        '%' => [5, 1, 2, 4, 5],
+        '|' => [2, 2, 2, 2, 2],
+        '²' => [6, 1, 2, 7, 0],
+        '°' => [2, 5, 2, 0, 0],
+        '×' => [0, 5, 2, 5, 0],
+        '±' => [2, 7, 2, 0, 7],
+        '−' => [0, 0, 7, 0, 0],
+        'A' => [2, 5, 7, 5, 5],
+        'B' => [6, 5, 6, 5, 6],
+        'C' => [3, 4, 4, 4, 3],
+        'D' => [6, 5, 5, 5, 6],
+        'E' => [7, 4, 6, 4, 7],
+        'F' => [7, 4, 6, 4, 4],
+        'G' => [3, 4, 5, 5, 3],
+        'H' => [5, 5, 7, 5, 5],
+        'I' => [7, 2, 2, 2, 7],
+        'J' => [1, 1, 1, 5, 2],
+        'K' => [5, 5, 6, 5, 5],
+        'L' => [4, 4, 4, 4, 7],
+        'M' => [5, 7, 7, 5, 5],
+        'N' => [6, 5, 5, 5, 5],
+        'O' => [2, 5, 5, 5, 2],
+        'P' => [6, 5, 6, 4, 4],
+        'Q' => [2, 5, 5, 6, 3],
+        'R' => [6, 5, 6, 5, 5],
+        'S' => [3, 4, 2, 1, 6],
+        'T' => [7, 2, 2, 2, 2],
+        'U' => [5, 5, 5, 5, 7],
+        'V' => [5, 5, 5, 5, 2],
+        'W' => [5, 5, 7, 7, 5],
+        'X' => [5, 5, 2, 5, 5],
+        'Y' => [5, 5, 2, 2, 2],
+        'Z' => [7, 1, 2, 4, 7],
+        c if c.is_ascii_lowercase() && c != 'e' => return glyph(c.to_ascii_uppercase()),
         _ => return None,
     })
 }
@@ -55,14 +97,48 @@ pub fn text(f: &mut Frame, x: i64, y: i64, scale: i64, s: &str, color: [u8; 3]) 
     }
 }
 
-/// Draws the diverging ramp for `[-range, range]` at the right edge of the
-/// frame with the values at its top, middle and bottom.
-pub fn diverging_legend(f: &mut Frame, range: f32) {
-    let scale = (f.height as i64 / 200).clamp(1, 4);
+/// Font pixels per glyph pixel for a frame `height` pixels tall.
+fn scale_for(height: u32) -> i64 {
+    (height as i64 / 150).clamp(1, 4)
+}
+
+/// Characters per line the legend strip holds.
+const COLUMNS: i64 = 10;
+
+/// Width in pixels of the strip at the right edge of a `width`×`height`
+/// frame that a legend covers (none when the frame is too small to hold one).
+pub fn legend_width(width: u32, height: u32) -> u32 {
+    let w = (COLUMNS * 4 + 3) * scale_for(height);
+    if w as u32 * 3 > width { 0 } else { w as u32 }
+}
+
+/// Value labels with the fewest digits that still tell the range apart from
+/// zero (`±1.00e-6`, never `±0.0000`).
+pub fn format_value(v: f32) -> String {
+    let a = v.abs();
+    if a != 0.0 && !(0.01..1e4).contains(&a) { format!("{v:.2e}") } else { format!("{v:.3}") }
+}
+
+/// Draws the diverging ramp for `[-range, range]` in the legend strip at the
+/// right edge of the frame, with the values at its top, middle and bottom
+/// and up to three `title` lines (name, units, how the range was chosen)
+/// above it. Lines longer than the strip are cut.
+pub fn diverging_legend(f: &mut Frame, range: f32, title: &[&str]) {
+    if legend_width(f.width, f.height) == 0 {
+        return;
+    }
+    let scale = scale_for(f.height);
     let bar_w = 6 * scale;
-    let label_w = 4 * scale * 8;
-    let x0 = f.width as i64 - bar_w - label_w - 4 * scale;
-    let (y0, y1) = (f.height as i64 / 5, f.height as i64 * 4 / 5);
+    let x0 = f.width as i64 - legend_width(f.width, f.height) as i64 + scale;
+    let white = [235, 235, 235];
+    let line = 7 * scale;
+    let lines = title.len().min(3) as i64;
+    let top = (f.height as i64 / 6).max(lines * line + 2 * scale);
+    for (k, t) in title.iter().take(3).enumerate() {
+        let cut: String = t.chars().take(COLUMNS as usize).collect();
+        text(f, x0, top - (lines - k as i64) * line, scale, &cut, white);
+    }
+    let (y0, y1) = (top + 2 * scale, f.height as i64 * 5 / 6);
     for y in y0..y1 {
         let t = 1.0 - 2.0 * (y - y0) as f32 / (y1 - y0 - 1).max(1) as f32;
         let c = diverging(t);
@@ -71,11 +147,41 @@ pub fn diverging_legend(f: &mut Frame, range: f32) {
             put(f, x, y, [q(c.x), q(c.y), q(c.z)]);
         }
     }
-    let white = [235, 235, 235];
     let lx = x0 + bar_w + 2 * scale;
-    text(f, lx, y0, scale, &format!("+{range:.2e}"), white);
+    text(f, lx, y0, scale, &format!("+{}", format_value(range)), white);
     text(f, lx, (y0 + y1) / 2 - 2 * scale, scale, " 0", white);
-    text(f, lx, y1 - 5 * scale, scale, &format!("-{range:.2e}"), white);
+    text(f, lx, y1 - 5 * scale, scale, &format!("-{}", format_value(range)), white);
+}
+
+/// Draws a key of discrete colours (e.g. MIP levels) in the legend strip:
+/// one swatch and label per entry, under up to two title lines.
+pub fn swatch_legend(f: &mut Frame, title: &[&str], entries: &[([u8; 3], String)]) {
+    if legend_width(f.width, f.height) == 0 {
+        return;
+    }
+    let scale = scale_for(f.height);
+    let x0 = f.width as i64 - legend_width(f.width, f.height) as i64 + scale;
+    let white = [235, 235, 235];
+    let line = 7 * scale;
+    let mut y = (f.height as i64 / 6).max(2 * scale);
+    for t in title.iter().take(2) {
+        let cut: String = t.chars().take(COLUMNS as usize).collect();
+        text(f, x0, y, scale, &cut, white);
+        y += line;
+    }
+    for (c, label) in entries {
+        if y + line > f.height as i64 {
+            break;
+        }
+        for dy in 0..5 * scale {
+            for dx in 0..5 * scale {
+                put(f, x0 + dx, y + dy, *c);
+            }
+        }
+        let cut: String = label.chars().take(COLUMNS as usize - 2).collect();
+        text(f, x0 + 7 * scale, y, scale, &cut, white);
+        y += line;
+    }
 }
 
 #[cfg(test)]
@@ -85,15 +191,38 @@ mod tests {
     #[test]
     fn legend_draws_ramp_and_labels_inside_the_frame() {
         let mut f = Frame { width: 200, height: 120, rgba: vec![0; 200 * 120 * 4] };
-        diverging_legend(&mut f, 0.25);
+        diverging_legend(&mut f, 0.25, &["MEAN", "CURVATURE", "1/LENGTH"]);
         let lit = f.rgba.chunks_exact(4).filter(|p| p[..3] != [0, 0, 0]).count();
         assert!(lit > 300, "{lit}");
-        // every format character has a glyph
-        for ch in format!("+{:.2e}-{:.2e}", 0.25f32, 123.0f32).chars() {
+        // nothing drawn left of the strip the framing keeps clear
+        let strip = legend_width(200, 120) as usize;
+        assert!(strip > 0);
+        for y in 0..120 {
+            for x in 0..200 - strip {
+                assert_eq!(f.rgba[(y * 200 + x) * 4..][..3], [0, 0, 0], "({x}, {y})");
+            }
+        }
+        // every character the legends write has a glyph
+        for v in [0.25f32, 123.0, 1e-6, 5e5, 0.0] {
+            for ch in format!("+{}-{}", format_value(v), format_value(v)).chars() {
+                assert!(glyph(ch).is_some(), "{ch}");
+            }
+        }
+        for ch in "GAUSSIAN CURVATURE 1/LENGTH² ±2×P75 OF |K| LEVEL MIP: (RANGE)°%".chars() {
             assert!(glyph(ch).is_some(), "{ch}");
         }
-        // tiny frames do not panic
+        // tiny frames do not panic and draw nothing
         let mut t = Frame { width: 3, height: 2, rgba: vec![0; 24] };
-        diverging_legend(&mut t, 1.0);
+        diverging_legend(&mut t, 1.0, &["X"]);
+        swatch_legend(&mut t, &["X"], &[([255, 0, 0], "0".into())]);
+        assert!(t.rgba.iter().all(|&b| b == 0));
+    }
+
+    #[test]
+    fn small_ranges_keep_their_digits() {
+        assert_eq!(format_value(1e-6), "1.00e-6");
+        assert_eq!(format_value(0.25), "0.250");
+        assert_eq!(format_value(0.0), "0.000");
+        assert_ne!(format_value(0.00004), "0.000");
     }
 }

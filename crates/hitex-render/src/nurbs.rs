@@ -216,6 +216,154 @@ impl PackedNurbs {
     }
 }
 
+/// Which model axis points up in a view.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum UpAxis {
+    /// The axis of the model's smallest extent (a part lies on its largest
+    /// face; the teapot, Z-up, keeps Z).
+    Auto,
+    /// A signed model axis: 0 = X, 1 = Y, 2 = Z; `true` for negative.
+    Axis(usize, bool),
+}
+
+impl UpAxis {
+    /// Parses `auto`, `x`, `y`, `z`, `+z`, `-y`, …
+    pub fn parse(s: &str) -> Result<Self, String> {
+        let t = s.trim().to_ascii_lowercase();
+        if t == "auto" {
+            return Ok(Self::Auto);
+        }
+        let (neg, name) = match t.strip_prefix('-') {
+            Some(r) => (true, r),
+            None => (false, t.strip_prefix('+').unwrap_or(&t)),
+        };
+        let k = match name {
+            "x" => 0,
+            "y" => 1,
+            "z" => 2,
+            _ => return Err(format!("'{s}' is not an axis: give auto, x, y, z, -x, -y or -z")),
+        };
+        Ok(Self::Axis(k, neg))
+    }
+
+    /// `+X`, `-Z`, … (`auto` before it is resolved).
+    pub fn name(self) -> String {
+        match self {
+            Self::Auto => "auto".into(),
+            Self::Axis(k, neg) => format!("{}{}", if neg { '-' } else { '+' }, ["X", "Y", "Z"][k.min(2)]),
+        }
+    }
+}
+
+/// How a model is looked at: which way is up, the turn about it and the
+/// elevation above the horizontal, in degrees.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModelView {
+    /// The model's up axis.
+    pub up: UpAxis,
+    /// Turn about the up axis, degrees.
+    pub turn_deg: f32,
+    /// Elevation of the eye above the horizontal plane, degrees in [−89, 89].
+    pub elevation_deg: f32,
+}
+
+impl ModelView {
+    /// Default elevation: the eye about 23.5° above the horizontal.
+    pub const ELEVATION_DEG: f32 = 23.5;
+    /// Default azimuth of the eye from the −(second axis) side, degrees.
+    const AZIMUTH_DEG: f32 = 29.54;
+}
+
+impl Default for ModelView {
+    fn default() -> Self {
+        Self { up: UpAxis::Auto, turn_deg: 0.0, elevation_deg: Self::ELEVATION_DEG }
+    }
+}
+
+/// For each boundary polyline (patch, side, density, points), whether
+/// another side's polyline has every one of its points within `tol`
+/// (neighbours sampled alike, whose tessellations already meet).
+fn matched_sides(sides: &[(usize, usize, u32, Vec<[f64; 3]>)], tol: f64) -> Vec<bool> {
+    use std::collections::HashMap;
+    let key = |p: &[f64; 3]| -> Option<[i64; 3]> {
+        let k = p.map(|x| (x / tol).floor());
+        k.iter().all(|x| x.is_finite() && x.abs() < 1e15).then(|| k.map(|x| x as i64))
+    };
+    // every side under the cells of its points
+    let mut cells: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
+    for (i, side) in sides.iter().enumerate() {
+        for p in &side.3 {
+            if let Some(c) = key(p) {
+                let list = cells.entry(c).or_default();
+                if list.last() != Some(&i) {
+                    list.push(i);
+                }
+            }
+        }
+    }
+    let near = |p: &[f64; 3], q: &[f64; 3]| (0..3).all(|t| (p[t] - q[t]).abs() <= tol);
+    sides
+        .iter()
+        .enumerate()
+        .map(|(i, side)| {
+            let pts = &side.3;
+            // a collapsed side (a pole) has no seam to close
+            if pts.iter().all(|p| near(p, &pts[0])) {
+                return true;
+            }
+            let Some(c) = key(&pts[0]) else { return false };
+            let mut candidates = Vec::new();
+            for d in 0..27i64 {
+                let cell = [c[0] + d % 3 - 1, c[1] + (d / 3) % 3 - 1, c[2] + d / 9 - 1];
+                if let Some(list) = cells.get(&cell) {
+                    candidates.extend(list.iter().copied().filter(|&j| j != i));
+                }
+            }
+            candidates.sort_unstable();
+            candidates.dedup();
+            candidates.iter().any(|&j| pts.iter().all(|p| sides[j].3.iter().any(|q| near(p, q))))
+        })
+        .collect()
+}
+
+/// Added to the patch index of boundary-fan vertices: the programs round the
+/// index, and draw fan fragments behind any surface truly there.
+pub const FAN_MARK: f32 = 0.25;
+
+/// Largest number of halvings of a boundary segment in its fan.
+const FAN_LEVELS: u32 = 3;
+
+/// Triangles closing the lens between one boundary segment's chord and its
+/// curve: the curve's midpoint joined to the chord, then each half again,
+/// until the sag left is below 1/4^[`FAN_LEVELS`] of the chord's (or
+/// vanishes). `at(t)` gives the boundary parameter pair at `t`, `push` takes
+/// one vertex (parameters, point, normal).
+fn boundary_fan(
+    s: &NurbsSurface,
+    at: &dyn Fn(f64) -> (f64, f64),
+    ta: f64,
+    tb: f64,
+    level: u32,
+    floor: f64,
+    push: &mut dyn FnMut((f64, f64), [f64; 3], [f64; 3]),
+) {
+    let tm = 0.5 * (ta + tb);
+    let (a, b, m) = (at(ta), at(tb), at(tm));
+    let (pa, pb, pm) = (s.point(a.0, a.1), s.point(b.0, b.1), s.point(m.0, m.1));
+    let sag = (0..3).map(|t| pm[t] - 0.5 * (pa[t] + pb[t])).map(|x| x * x).sum::<f64>().sqrt();
+    if !(sag.is_finite() && sag > floor && pa.iter().chain(&pb).chain(&pm).all(|x| x.is_finite())) {
+        return;
+    }
+    for (uv, p) in [(a, pa), (b, pb), (m, pm)] {
+        push(uv, p, s.normal(uv.0, uv.1));
+    }
+    if level + 1 < FAN_LEVELS {
+        let floor = if level == 0 { sag / 4f64.powi(FAN_LEVELS as i32) } else { floor };
+        boundary_fan(s, at, ta, tm, level + 1, floor, push);
+        boundary_fan(s, at, tm, tb, level + 1, floor, push);
+    }
+}
+
 /// A NURBS model ready for either backend.
 #[derive(Debug, Clone)]
 pub struct PreparedNurbs {
@@ -267,19 +415,23 @@ impl PreparedNurbs {
         let mut vertices = Vec::new();
         let mut indices = Vec::new();
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        let mut sides: Vec<(usize, usize, u32, Vec<[f64; 3]>)> = Vec::new();
         for (k, s) in surfaces.iter().enumerate() {
             let ((u0, u1), (v0, v1)) = ranges.get(k).copied().unwrap_or_else(|| s.domain());
             let density = densities.get(k).copied().unwrap_or(8).clamp(1, 256);
             let base = vertices.len() as u32;
-            for j in 0..=density {
-                for i in 0..=density {
-                    let u = u0 + (u1 - u0) * i as f64 / density as f64;
-                    let v = v0 + (v1 - v0) * j as f64 / density as f64;
+            let grid =
+                |a: f64, b: f64| (0..=density).map(|i| a + (b - a) * i as f64 / density as f64).collect::<Vec<f64>>();
+            let (us, vs) = (grid(u0, u1), grid(v0, v1));
+            for &v in &vs {
+                for &u in &us {
                     let p = s.point(u, v);
                     let n = s.normal(u, v);
-                    for t in 0..3 {
-                        lo[t] = lo[t].min(p[t]);
-                        hi[t] = hi[t].max(p[t]);
+                    if p.iter().all(|x| x.is_finite()) {
+                        for t in 0..3 {
+                            lo[t] = lo[t].min(p[t]);
+                            hi[t] = hi[t].max(p[t]);
+                        }
                     }
                     vertices.push(NurbsVertex {
                         position: p.map(|x| x as f32),
@@ -296,6 +448,68 @@ impl PreparedNurbs {
                     let a = base + j * row + i;
                     indices.extend_from_slice(&[a, a + 1, a + row, a + 1, a + row + 1, a + row]);
                 }
+            }
+            // the boundary polylines, for the fans below
+            for side in 0..4 {
+                let pts = (0..=density as usize)
+                    .map(|i| {
+                        let (u, v) = (
+                            if side == 0 {
+                                u0
+                            } else if side == 1 {
+                                u1
+                            } else {
+                                us[i]
+                            },
+                            if side == 2 {
+                                v0
+                            } else if side == 3 {
+                                v1
+                            } else {
+                                vs[i]
+                            },
+                        );
+                        s.point(u, v)
+                    })
+                    .collect();
+                sides.push((k, side, density, pts));
+            }
+        }
+        // boundary fans: each side's chords are joined to the curve they cut
+        // across. Neighbours tessellated independently cut a shared curve into
+        // different chords; each fills up to the curve (within 1/64 of its
+        // chords' sag), so no background shows between them, and nothing
+        // reaches past the true surface. A side whose polyline another side
+        // repeats point for point needs none (the teapot's seams).
+        let extent = (0..3).map(|t| (hi[t] - lo[t]).powi(2)).sum::<f64>().sqrt();
+        let matched = matched_sides(&sides, 1e-9 * extent.max(1e-300));
+        for ((k, side, density, _), matched) in sides.iter().zip(matched) {
+            if matched {
+                continue;
+            }
+            let (k, density) = (*k, *density);
+            let s = &surfaces[k];
+            let ((u0, u1), (v0, v1)) = ranges.get(k).copied().unwrap_or_else(|| s.domain());
+            let at: Box<dyn Fn(f64) -> (f64, f64)> = match side {
+                0 => Box::new(|t| (u0, t)),
+                1 => Box::new(|t| (u1, t)),
+                2 => Box::new(|t| (t, v0)),
+                _ => Box::new(|t| (t, v1)),
+            };
+            let (a, b) = if *side < 2 { (v0, v1) } else { (u0, u1) };
+            let mut push = |uv: (f64, f64), p: [f64; 3], n: [f64; 3]| {
+                indices.push(vertices.len() as u32);
+                vertices.push(NurbsVertex {
+                    position: p.map(|x| x as f32),
+                    normal: n.map(|x| x as f32),
+                    uv: [uv.0 as f32, uv.1 as f32],
+                    patch: k as f32 + FAN_MARK,
+                    _pad: 0.0,
+                });
+            };
+            for i in 0..density {
+                let (ta, tb) = (a + (b - a) * i as f64 / density as f64, a + (b - a) * (i + 1) as f64 / density as f64);
+                boundary_fan(s, at.as_ref(), ta, tb, 0, 0.0, &mut push);
             }
         }
         let center =
@@ -402,6 +616,54 @@ impl PreparedNurbs {
             self.id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
         count
+    }
+
+    /// The up axis `Auto` resolves to: the axis of the smallest extent of the
+    /// tessellation (the first of equal ones, so Z only when it is strictly
+    /// the thinnest or ties with none).
+    pub fn detect_up(&self) -> UpAxis {
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for v in &self.vertices {
+            for t in 0..3 {
+                lo[t] = lo[t].min(v.position[t]);
+                hi[t] = hi[t].max(v.position[t]);
+            }
+        }
+        let ext = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+        if !ext.iter().all(|e| e.is_finite()) {
+            return UpAxis::Axis(2, false);
+        }
+        // ties go to Z, the usual CAD convention
+        let mut k = 2;
+        for t in [1, 0] {
+            if ext[t] < ext[k] * (1.0 - 1e-3) {
+                k = t;
+            }
+        }
+        UpAxis::Axis(k, false)
+    }
+
+    /// A camera showing the whole model from `view`, fitted into the window
+    /// `[x0, x1] × [y0, y1]` of normalised device coordinates of a frame of
+    /// `aspect` (width / height), with the same field of view as
+    /// [`PreparedNurbs::camera`]. Falls back to that camera if the model has
+    /// no finite vertex.
+    pub fn view_camera(&self, view: &ModelView, aspect: f32, window: [f32; 4]) -> Camera {
+        let up = match view.up {
+            UpAxis::Auto => self.detect_up(),
+            a => a,
+        };
+        let UpAxis::Axis(k, neg) = up else { return self.camera };
+        let k = k.min(2);
+        let unit = |i: usize| Vec3::from_array(std::array::from_fn(|t| if t == i % 3 { 1.0 } else { 0.0 }));
+        // (a, b, up) right-handed: Z-up gives (X, Y, Z)
+        let sign = if neg { -1.0 } else { 1.0 };
+        let (a, b, u) = (unit(k + 1) * sign, unit(k + 2), unit(k) * sign);
+        let az = (ModelView::AZIMUTH_DEG + view.turn_deg).to_radians();
+        let el = view.elevation_deg.clamp(-89.0, 89.0).to_radians();
+        let toward = (a * az.sin() - b * az.cos()) * el.cos() + u * el.sin();
+        let points: Vec<Vec3> = self.vertices.iter().map(|v| Vec3::from_array(v.position)).collect();
+        Camera::framing(&points, toward, u, self.camera.fov_y_deg, aspect, window).unwrap_or(self.camera)
     }
 
     /// Trims patches by loops in their parameter space (see [`PackedNurbs::set_trims`]).

@@ -230,3 +230,132 @@ fn second_prepared_degree_and_elevation_to_the_nearest_prepared_degree() {
         }
     }
 }
+
+/// Pixels where `f` shows the background but a dense tessellation covers
+/// every pixel within `r` of it (cracks, not the silhouette differences a
+/// coarse tessellation has).
+fn cracks(f: &hitex_render::Frame, dense: &hitex_render::Frame, bg: [u8; 3], r: usize) -> Vec<usize> {
+    let (w, h) = (f.width as usize, f.height as usize);
+    let is_bg = |g: &hitex_render::Frame, i: usize| g.rgba[i * 4..i * 4 + 3] == bg;
+    // erode the dense coverage by r: rows, then columns
+    let covered: Vec<bool> = (0..w * h).map(|i| !is_bg(dense, i)).collect();
+    let mut rows = vec![false; w * h];
+    for y in 0..h {
+        for x in r..w.saturating_sub(r) {
+            rows[y * w + x] = (x - r..=x + r).all(|k| covered[y * w + k]);
+        }
+    }
+    let mut out = Vec::new();
+    for y in r..h.saturating_sub(r) {
+        for x in 0..w {
+            let i = y * w + x;
+            if (y - r..=y + r).all(|k| rows[k * w + x]) && is_bg(f, i) {
+                out.push(i);
+            }
+        }
+    }
+    out
+}
+
+/// Two halves of a tube (exact rational quadratic arcs) meeting at x = 1.
+fn split_tube() -> Vec<hitex_core::nurbs::NurbsSurface> {
+    let r = std::f64::consts::FRAC_1_SQRT_2;
+    // a half circle of radius 1 in the y–z plane: two 90° arcs
+    let arc = [(1.0, 0.0, 1.0), (1.0, 1.0, r), (0.0, 1.0, 1.0), (-1.0, 1.0, r), (-1.0, 0.0, 1.0)];
+    let half = |x0: f64| {
+        let mut pts = Vec::new();
+        for &(y, z, w) in &arc {
+            for x in [x0, x0 + 1.0] {
+                pts.push([x, y, z, w]);
+            }
+        }
+        hitex_core::nurbs::NurbsSurface::new(
+            1,
+            2,
+            2,
+            5,
+            vec![0.0, 0.0, 1.0, 1.0],
+            vec![0.0, 0.0, 0.0, 0.5, 0.5, 1.0, 1.0, 1.0],
+            pts,
+        )
+        .unwrap()
+    };
+    vec![half(0.0), half(1.0)]
+}
+
+fn assert_no_cracks(name: &str, p: &PreparedNurbs, dense: &PreparedNurbs, cams: &[hitex_core::scene::Camera]) {
+    let cpu = CpuRenderer::new();
+    let e = hitex_core::texture::linear_to_srgb_u8;
+    let bg = [e(p.background.x), e(p.background.y), e(p.background.z)];
+    let mut found = Vec::new();
+    for (k, cam) in cams.iter().enumerate() {
+        let mut f = cpu.render_nurbs(p, cam, 640, 480).unwrap();
+        let reference = cpu.render_nurbs(dense, cam, 640, 480).unwrap();
+        let holes = cracks(&f, &reference, bg, 8);
+        if !holes.is_empty() {
+            for &i in &holes {
+                f.rgba[i * 4..i * 4 + 3].copy_from_slice(&[255, 0, 0]);
+            }
+            save(&out_dir().join(format!("cracks-{name}-{k}.png")), f.width, f.height, &f.rgba);
+        }
+        found.push(holes.len());
+    }
+    assert!(found.iter().all(|&n| n == 0), "{name}: cracks per view {found:?}; marked red in {}", out_dir().display());
+}
+
+#[test]
+fn seams_between_patches_leave_no_cracks() {
+    // neighbours tessellated independently: the shared edge of the tube's
+    // halves is cut into 6 chords on one side and 9 on the other, and the
+    // teapot's patches are cut at a few densities
+    let tube = split_tube();
+    let ranges: Vec<_> = tube.iter().map(|s| s.domain()).collect();
+    let p = PreparedNurbs::with_densities(tube.clone(), &ranges, &[6, 9]);
+    let dense = PreparedNurbs::with_densities(tube, &ranges, &[96, 96]);
+    let cams: Vec<_> = [0.0f32, 0.5, 1.2, 2.5, 3.6].iter().map(|&t| dense.camera.orbit(t)).collect();
+    assert_no_cracks("tube", &p, &dense, &cams);
+
+    let m = hitex_io::models::load_model("teapot").unwrap();
+    let dense = PreparedNurbs::new(m.nurbs(), &m.ranges(), 64);
+    let cams: Vec<_> = [0.0f32, 90.0, 180.0, 270.0].iter().map(|t| dense.camera.orbit(t.to_radians())).collect();
+    for density in [3, 4, 8] {
+        let p = PreparedNurbs::new(m.nurbs(), &m.ranges(), density);
+        assert_no_cracks(&format!("teapot-{density}"), &p, &dense, &cams);
+    }
+}
+
+#[test]
+fn faces_meeting_along_trims_leave_no_pinholes() {
+    // a disc and the square around it, cut from one plane by two different
+    // polylines of the same circle (67 and 48 chords, less than half a pixel
+    // apart): each face is drawn up to about a pixel past its trim, behind
+    // the other, so no pixel between the two polylines shows the background
+    let s = wavy(1, 1, 2, 2);
+    let circle = |n: usize, phase: f64| -> Vec<[f64; 2]> {
+        (0..=n)
+            .map(|i| {
+                let a = std::f64::consts::TAU * (i as f64 + phase) / n as f64;
+                [0.5 + 0.3 * a.cos(), 0.5 + 0.3 * a.sin()]
+            })
+            .collect()
+    };
+    let outer = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]];
+    let faces = vec![s.clone(), s.clone()];
+    let ranges = [s.domain(), s.domain()];
+    let mut p = PreparedNurbs::new(faces.clone(), &ranges, 8);
+    p.set_trims(&[vec![outer, circle(48, 0.0)], vec![circle(67, 0.5)]]);
+    let mut whole = PreparedNurbs::new(vec![s.clone()], &[s.domain()], 8);
+    whole.mode = p.mode;
+    let cams: Vec<_> = [0.0f32, 0.8, 2.0].iter().map(|&t| whole.camera.orbit(t)).collect();
+    assert_no_cracks("trims", &p, &whole, &cams);
+    if let Some(mut g) = gpu_or_skip("faces_meeting_along_trims_leave_no_pinholes") {
+        let e = hitex_core::texture::linear_to_srgb_u8;
+        let bg = [e(p.background.x), e(p.background.y), e(p.background.z)];
+        for cam in &cams {
+            let f = g.render_nurbs(&p, cam, 640, 480).unwrap();
+            let reference = CpuRenderer::new().render_nurbs(&whole, cam, 640, 480).unwrap();
+            let holes = cracks(&f, &reference, bg, 8);
+            assert!(holes.is_empty(), "gpu: {} pixels of background between the faces", holes.len());
+        }
+    }
+}

@@ -82,6 +82,67 @@ impl Camera {
         self.projection(aspect) * self.view()
     }
 
+    /// The nearest camera looking along `-toward` (`toward` points from the
+    /// model to the eye) that shows every point inside the window
+    /// `[x0, x1] × [y0, y1]` of normalised device coordinates (−1…1, y up)
+    /// of a frame of the given aspect (width / height). The distance and the
+    /// sideways shift are the exact solution of the linear constraints the
+    /// window puts on them. `None` for no finite points, a zero or vertical
+    /// direction, or an empty window.
+    pub fn framing(
+        points: &[Vec3],
+        toward: Vec3,
+        up: Vec3,
+        fov_y_deg: f32,
+        aspect: f32,
+        window: [f32; 4],
+    ) -> Option<Self> {
+        let [x0, x1, y0, y1] = window;
+        if !(x0 < x1 && y0 < y1 && aspect > 0.0 && fov_y_deg > 0.0 && fov_y_deg < 180.0) {
+            return None;
+        }
+        let f = (-toward).try_normalize()?;
+        let s = f.cross(up).try_normalize()?;
+        let u = s.cross(f);
+        let pts: Vec<Vec3> = points.iter().copied().filter(|p| p.is_finite()).collect();
+        if pts.is_empty() {
+            return None;
+        }
+        let (lo, hi) = pts.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+        let c = (lo + hi) * 0.5;
+        let ty = (0.5 * fov_y_deg.to_radians()).tan();
+        let tx = ty * aspect;
+        let local: Vec<[f32; 3]> = pts.iter().map(|p| [(*p - c).dot(s), (*p - c).dot(u), (*p - c).dot(f)]).collect();
+        // along one screen axis, with the eye shifted by e and set back by d:
+        // a0·t·(z + d) ≤ x − e ≤ a1·t·(z + d) for every point, so
+        // e + a1·t·d ≥ max(x − a1·t·z) = P and e + a0·t·d ≤ min(x − a0·t·z) = Q,
+        // whence d ≥ (P − Q) / ((a1 − a0)·t)
+        let axis = |k: usize, a0: f32, a1: f32, t: f32| {
+            let p = local.iter().map(|q| q[k] - a1 * t * q[2]).fold(f32::NEG_INFINITY, f32::max);
+            let q = local.iter().map(|q| q[k] - a0 * t * q[2]).fold(f32::INFINITY, f32::min);
+            (p, q, (p - q) / ((a1 - a0) * t))
+        };
+        let (px, qx, dx) = axis(0, x0, x1, tx);
+        let (py, qy, dy) = axis(1, y0, y1, ty);
+        let zmin = local.iter().map(|q| q[2]).fold(f32::INFINITY, f32::min);
+        let zmax = local.iter().map(|q| q[2]).fold(f32::NEG_INFINITY, f32::max);
+        let extent = (hi - lo).length().max(1e-6);
+        let d = dx.max(dy).max(-zmin + 1e-3 * extent);
+        // the shift in the middle of the interval the distance leaves open
+        let ex = 0.5 * ((px - x1 * tx * d) + (qx - x0 * tx * d));
+        let ey = 0.5 * ((py - y1 * ty * d) + (qy - y0 * ty * d));
+        let position = c + s * ex + u * ey - f * d;
+        let cam = Self {
+            position,
+            target: position + f * d,
+            up,
+            fov_y_deg,
+            near: ((zmin + d) * 0.5).max(d * 1e-3),
+            far: (zmax + d) * 1.5 + 1e-3 * extent,
+        };
+        cam.validate().ok().map(|_| cam)
+    }
+
     /// The camera turned by `angle` radians about the vertical axis through
     /// the target (for orbits and benchmarks).
     pub fn orbit(&self, angle: f32) -> Self {
@@ -135,6 +196,47 @@ mod tests {
         let up = v.row(1).truncate();
         let p = c.view_proj(1.0) * (c.target + right * 0.1 + up * 0.1).extend(1.0);
         assert!(p.x > 0.0 && p.y > 0.0);
+    }
+
+    #[test]
+    fn framing_fits_the_points_tightly_into_the_window() {
+        // the corners of a box, seen from an oblique direction
+        let mut pts = Vec::new();
+        for k in 0..8 {
+            pts.push(Vec3::new(
+                if k & 1 == 0 { -3.0 } else { 3.5 },
+                if k & 2 == 0 { -2.0 } else { 2.0 },
+                if k & 4 == 0 { 0.0 } else { 3.15 },
+            ));
+        }
+        for (toward, aspect, window) in [
+            (Vec3::new(0.85, -1.5, 0.75), 1.0, [-1.0, 1.0, -1.0, 1.0]),
+            (Vec3::new(-1.0, 0.2, 0.1), 16.0 / 9.0, [-0.9, 0.5, -0.8, 0.9]),
+            (Vec3::new(0.0, 0.1, -1.0), 0.5, [-1.0, 1.0, -0.2, 1.0]),
+        ] {
+            let cam = Camera::framing(&pts, toward, Vec3::Z, 35.0, aspect, window).unwrap();
+            let m = cam.view_proj(aspect);
+            let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+            for p in &pts {
+                let c = m * p.extend(1.0);
+                let n = c.truncate() / c.w;
+                assert!(c.w > 0.0 && n.z >= 0.0 && n.z <= 1.0, "{n}");
+                lo = lo.min(n);
+                hi = hi.max(n);
+            }
+            let eps = 1e-4;
+            assert!(lo.x >= window[0] - eps && hi.x <= window[1] + eps, "{lo} {hi}");
+            assert!(lo.y >= window[2] - eps && hi.y <= window[3] + eps, "{lo} {hi}");
+            // tight along at least one axis, centred along the other
+            let fx = (hi.x - lo.x) / (window[1] - window[0]);
+            let fy = (hi.y - lo.y) / (window[3] - window[2]);
+            assert!((fx.max(fy) - 1.0).abs() < 1e-3, "{fx} {fy}");
+            let dir = (cam.position - cam.target).normalize();
+            assert!(dir.dot(toward.normalize()) > 0.99999);
+        }
+        assert!(Camera::framing(&[], Vec3::X, Vec3::Z, 35.0, 1.0, [-1.0, 1.0, -1.0, 1.0]).is_none());
+        assert!(Camera::framing(&pts, Vec3::Z, Vec3::Z, 35.0, 1.0, [-1.0, 1.0, -1.0, 1.0]).is_none());
+        assert!(Camera::framing(&pts, Vec3::X, Vec3::Z, 35.0, 1.0, [1.0, -1.0, -1.0, 1.0]).is_none());
     }
 
     #[test]

@@ -167,6 +167,99 @@ pub fn trimmed_away(t: &PackedNurbs, patch: usize, u: f32, v: f32) -> bool {
     !inside
 }
 
+/// How far beyond its patch's boundary (the domain's sides or a trimming
+/// loop) a fragment is still drawn, in units of its parameter's fwidth, i.e.
+/// about a pixel. The trimming loops of two faces meeting along an edge are
+/// different polylines of one curve; drawing each face a little past its
+/// loop, behind the other ([`Reach::Seam`]), closes the seam without a
+/// pinhole while an open edge grows by less than a pixel. (Untrimmed sides
+/// are closed by the tessellation's boundary fans instead.) Fragments past
+/// the domain show the boundary point (their parameters are clamped); past
+/// a trimming loop, the untrimmed surface just beyond it.
+pub const SEAM_REACH: f32 = 0.75;
+
+/// The parameter domain `[u0, u1] × [v0, v1]` of a packed patch.
+fn domain(t: &PackedNurbs, patch: usize) -> (f32, f32, f32, f32) {
+    let (kw, cw) = (t.knot_width as usize, t.cp_width as usize);
+    let head = t.control[patch * cw];
+    let (p, q, nu, nv) = (head[0] as usize, head[1] as usize, head[2] as usize, head[3] as usize);
+    (
+        t.knots_u[patch * kw + 1 + p],
+        t.knots_u[patch * kw + 1 + nu],
+        t.knots_v[patch * kw + 1 + q],
+        t.knots_v[patch * kw + 1 + nv],
+    )
+}
+
+/// Where a fragment lies against its patch's boundary (see [`SEAM_REACH`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reach {
+    /// Within the domain and the trimming loops.
+    Inside,
+    /// Past the boundary, within the seam reach: drawn, behind any surface
+    /// that truly covers the pixel.
+    Seam,
+    /// Farther past the boundary: discarded.
+    Cut,
+}
+
+/// How far past its patch's boundary the fragment at (u, v) lies, whose
+/// parameters change by `fu`, `fv` (fwidth) across a pixel: beyond the domain
+/// by more than [`SEAM_REACH`], or trimmed away and farther than that from
+/// every trimming edge, is [`Reach::Cut`] (distances measured with u in units
+/// of `fu` and v of `fv`).
+pub fn reach(t: &PackedNurbs, patch: usize, u: f32, v: f32, fu: f32, fv: f32) -> Reach {
+    let (u0, u1, v0, v1) = domain(t, patch);
+    let (ou, ov) = ((u0 - u).max(u - u1), (v0 - v).max(v - v1));
+    if ou > SEAM_REACH * fu || ov > SEAM_REACH * fv {
+        return Reach::Cut;
+    }
+    if trimmed_away(t, patch, u, v) {
+        return if near_trim(t, patch, u, v, fu, fv) { Reach::Seam } else { Reach::Cut };
+    }
+    if ou > 0.0 || ov > 0.0 { Reach::Seam } else { Reach::Inside }
+}
+
+/// Whether a fragment's patch varying carries the boundary-fan mark
+/// ([`crate::nurbs::FAN_MARK`]): fans close seams and are drawn as seam fragments.
+#[inline(always)]
+fn is_fan(patch: f32) -> bool {
+    (patch - patch.round()).abs() > 0.125
+}
+
+/// Seam fragments are drawn as if 0.5 % farther from the eye, so that the
+/// neighbour's own fragments win where they exist.
+pub const SEAM_DEPTH_SCALE: f32 = 1.005;
+
+/// Whether a trimming edge of the patch passes within [`SEAM_REACH`] of
+/// (u, v), in the fwidth units of [`cut_away`].
+fn near_trim(t: &PackedNurbs, patch: usize, u: f32, v: f32, fu: f32, fv: f32) -> bool {
+    if !(fu > 0.0 && fv > 0.0) {
+        return false;
+    }
+    let (sx, sy) = (1.0 / (SEAM_REACH * fu), 1.0 / (SEAM_REACH * fv));
+    let w = t.trim_width as usize;
+    let n = t.trims[patch * w][0] as usize;
+    for e in &t.trims[patch * w + 1..patch * w + 1 + n] {
+        let (ax, ay) = ((e[0] - u) * sx, (e[1] - v) * sy);
+        let (dx, dy) = ((e[2] - e[0]) * sx, (e[3] - e[1]) * sy);
+        let dd = dx * dx + dy * dy;
+        let k = if dd > 0.0 { (-(ax * dx + ay * dy) / dd).clamp(0.0, 1.0) } else { 0.0 };
+        let (px, py) = (ax + k * dx, ay + k * dy);
+        if px * px + py * py <= 1.0 {
+            return true;
+        }
+    }
+    false
+}
+
+/// fwidth of varying `j` for the four lanes of quad `quad` of a block.
+fn fwidth_quad(b: &Block<VARYINGS>, j: usize, quad: usize) -> [f32; 4] {
+    let a: [f32; 4] = std::array::from_fn(|l| b.v[j][4 * quad + l]);
+    let (dx, dy) = (super::textured::dpdx(a), super::textured::dpdy(a));
+    std::array::from_fn(|i| dx[i].abs() + dy[i].abs())
+}
+
 /// Unit normal `S_u × S_v`, or `fallback` where the cross product vanishes
 /// against the size of the partials (collapsed rows, apexes).
 pub fn exact_normal(e: &Eval, fallback: Vec3) -> Vec3 {
@@ -254,22 +347,23 @@ impl<'a> NurbsProgram<'a> {
     fn on_boundary(&self, v: &[f32; VARYINGS], fu: f32, fv: f32) -> bool {
         let t = self.packed;
         let patch = (v[5].round().max(0.0) as usize).min(t.patches.saturating_sub(1) as usize);
-        let (kw, cw) = (t.knot_width as usize, t.cp_width as usize);
-        let head = t.control[patch * cw];
-        let (p, q, nu, nv) = (head[0] as usize, head[1] as usize, head[2] as usize, head[3] as usize);
-        let (u0, u1) = (t.knots_u[patch * kw + 1 + p], t.knots_u[patch * kw + 1 + nu]);
-        let (v0, v1) = (t.knots_v[patch * kw + 1 + q], t.knots_v[patch * kw + 1 + nv]);
+        let (u0, u1, v0, v1) = domain(t, patch);
         let du = (v[3] - u0).min(u1 - v[3]);
         let dv = (v[4] - v0).min(v1 - v[4]);
         du < fu || dv < fv
     }
 
-    fn lane(&self, v: &[f32; VARYINGS]) -> ([u8; 4], f32) {
+    /// One fragment; `fu`, `fv`: fwidth of u and v.
+    fn lane(&self, v: &[f32; VARYINGS], fu: f32, fv: f32) -> ([u8; 4], f32) {
         let f = self.frame;
         let patch = (v[5].round().max(0.0) as usize).min(self.packed.patches.saturating_sub(1) as usize);
         let mode = f.params[0];
-        // trimmed away: no colour, no depth (discarded)
-        if trimmed_away(self.packed, patch, v[3], v[4]) {
+        // past the domain or trimmed away, beyond the seam reach: no colour, no depth (discarded)
+        let mut at = reach(self.packed, patch, v[3], v[4], fu, fv);
+        if at == Reach::Inside && is_fan(v[5]) {
+            at = Reach::Seam;
+        }
+        if at == Reach::Cut {
             return ([0, 0, 0, 0], f32::NAN);
         }
         let second = mode == 3 || mode == 4;
@@ -283,8 +377,9 @@ impl<'a> NurbsProgram<'a> {
         if n.dot(view) < 0.0 {
             n = -n;
         }
-        // depth of the exact point
-        let clip = self.view_proj * e.s.extend(1.0);
+        // depth of the exact point (of a seam fragment: pushed back)
+        let at_depth = if at == Reach::Seam { cam + (e.s - cam) * SEAM_DEPTH_SCALE } else { e.s };
+        let clip = self.view_proj * at_depth.extend(1.0);
         let depth = clip.z / clip.w;
         let light = Vec3::new(f.light[0], f.light[1], f.light[2]);
         let raw = |c: Vec3| {
@@ -438,18 +533,39 @@ impl NurbsProgram<'_> {
             }
         }
         depth.copy_from_slice(&d);
-        // trimmed-away lanes are discarded; degenerate normals take the per-lane path
+        // lanes cut away (past the domain or trimmed, beyond the seam reach)
+        // are discarded; seam lanes and degenerate normals take the per-lane path
         let trimmed = t.trims[patch * t.trim_width as usize][0] as usize != 0;
-        for lane in 0..LANES {
-            if b.live & (1 << lane) == 0 {
+        for quad in 0..4 {
+            let base = 4 * quad;
+            let mask = (b.live >> base) & 0xf;
+            if mask == 0 {
                 continue;
             }
-            if trimmed && trimmed_away(t, patch, b.v[3][lane], b.v[4][lane]) {
-                rgba[lane] = [0, 0, 0, 0];
-                depth[lane] = f32::NAN;
-            } else if degenerate & (1 << lane) != 0 {
-                let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
-                (rgba[lane], depth[lane]) = self.lane(&v);
+            // only lanes past the domain, in trimmed patches or degenerate need fwidth
+            let (bu, bv) = (&b.v[3][base..base + 4], &b.v[4][base..base + 4]);
+            let outside =
+                (0..4).any(|l| bu[l] < u0 || bu[l] > u1 || bv[l] < v0 || bv[l] > v1 || is_fan(b.v[5][base + l]));
+            if !(trimmed || outside || (degenerate >> base) & 0xf != 0) {
+                continue;
+            }
+            let (fu, fv) = (fwidth_quad(b, 3, quad), fwidth_quad(b, 4, quad));
+            for l in 0..4 {
+                let lane = base + l;
+                if mask & (1 << l) == 0 {
+                    continue;
+                }
+                let mut at = reach(t, patch, bu[l], bv[l], fu[l], fv[l]);
+                if at == Reach::Inside && is_fan(b.v[5][lane]) {
+                    at = Reach::Seam;
+                }
+                if at == Reach::Cut {
+                    rgba[lane] = [0, 0, 0, 0];
+                    depth[lane] = f32::NAN;
+                } else if at == Reach::Seam || degenerate & (1 << lane) != 0 {
+                    let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
+                    (rgba[lane], depth[lane]) = self.lane(&v, fu[l], fv[l]);
+                }
             }
         }
         Some(())
@@ -860,23 +976,14 @@ impl BlockShader<VARYINGS> for NurbsProgram<'_> {
             if (b.live >> base) & 0xf == 0 {
                 continue;
             }
-            // patch-boundary overlay: fwidth of u and v from the quad's lanes
-            let (fu, fv) = if overlay {
-                let fw = |j: usize| -> [f32; 4] {
-                    let a: [f32; 4] = std::array::from_fn(|l| b.v[j][base + l]);
-                    let (dx, dy) = (super::textured::dpdx(a), super::textured::dpdy(a));
-                    std::array::from_fn(|i| dx[i].abs() + dy[i].abs())
-                };
-                (fw(3), fw(4))
-            } else {
-                ([0.0; 4], [0.0; 4])
-            };
+            // fwidth of u and v from the quad's lanes (seam reach, boundary overlay)
+            let (fu, fv) = (fwidth_quad(b, 3, quad), fwidth_quad(b, 4, quad));
             // helper lanes only feed the derivatives above: their colour is never computed
             for l in 0..4 {
                 let lane = base + l;
                 if b.live & (1 << lane) != 0 {
                     let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
-                    let (mut c, d) = self.lane(&v);
+                    let (mut c, d) = self.lane(&v, fu[l], fv[l]);
                     if overlay && self.on_boundary(&v, fu[l], fv[l]) {
                         c = [20, 20, 24, 255];
                     }
@@ -987,7 +1094,8 @@ mod tests {
                         continue;
                     }
                     let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
-                    let (c, d) = prog.lane(&v);
+                    let (fu, fv) = (fwidth_quad(&b, 3, lane / 4)[lane % 4], fwidth_quad(&b, 4, lane / 4)[lane % 4]);
+                    let (c, d) = prog.lane(&v, fu, fv);
                     assert_eq!(rgba[lane], c, "mode {mode} block {k} lane {lane}");
                     assert_eq!(depth[lane].to_bits(), d.to_bits(), "mode {mode} block {k} lane {lane}");
                 }

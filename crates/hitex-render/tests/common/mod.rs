@@ -39,13 +39,13 @@ pub fn gpu_or_skip(test: &str) -> Option<GpuRenderer> {
     }
 }
 
-fn out_dir() -> PathBuf {
+pub fn out_dir() -> PathBuf {
     let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/test-output");
     let _ = std::fs::create_dir_all(&d);
     d
 }
 
-fn save(path: &Path, w: u32, h: u32, rgba: &[u8]) {
+pub fn save(path: &Path, w: u32, h: u32, rgba: &[u8]) {
     if let Err(e) = hitex_io::save_png(path, w, h, rgba) {
         eprintln!("could not write {}: {e}", path.display());
     }
