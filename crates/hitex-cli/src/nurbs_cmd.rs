@@ -119,7 +119,7 @@ pub struct RenderArgs {
     /// Elevation of the eye above the model's horizontal plane, degrees in −89…89.
     #[arg(long, default_value_t = ModelView::ELEVATION_DEG, allow_negative_numbers = true)]
     pub elevation: f32,
-    /// The model's up axis: auto (its thinnest extent), x, y, z, -x, -y or -z.
+    /// The model's up axis: auto (a flat model's thinnest extent, else z), x, y, z, -x, -y or -z.
     #[arg(long, default_value = "auto", value_parser = UpAxis::parse, allow_hyphen_values = true)]
     pub up: UpAxis,
 }
@@ -229,7 +229,11 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             println!(
                 "view: up {}{}, turn {}°, elevation {}°, fitted to the frame",
                 up.name(),
-                if a.up == UpAxis::Auto { " (the model's thinnest extent; --up to change)" } else { "" },
+                if a.up == UpAxis::Auto {
+                    " (auto: a flat model's thinnest extent, else Z; --up to change)"
+                } else {
+                    ""
+                },
                 a.turn,
                 a.elevation
             );

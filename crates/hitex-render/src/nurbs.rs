@@ -219,8 +219,8 @@ impl PackedNurbs {
 /// Which model axis points up in a view.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum UpAxis {
-    /// The axis of the model's smallest extent (a part lies on its largest
-    /// face; the teapot, Z-up, keeps Z).
+    /// The axis of a flat model's smallest extent (a sheet lies on its
+    /// largest face), else Z (the usual CAD convention).
     Auto,
     /// A signed model axis: 0 = X, 1 = Y, 2 = Z; `true` for negative.
     Axis(usize, bool),
@@ -618,9 +618,8 @@ impl PreparedNurbs {
         count
     }
 
-    /// The up axis `Auto` resolves to: the axis of the smallest extent of the
-    /// tessellation (the first of equal ones, so Z only when it is strictly
-    /// the thinnest or ties with none).
+    /// The up axis `Auto` resolves to: for a flat model (its thinnest extent
+    /// under half the middle one) the axis of that extent, else +Z.
     pub fn detect_up(&self) -> UpAxis {
         let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
         for v in &self.vertices {
@@ -633,13 +632,11 @@ impl PreparedNurbs {
         if !ext.iter().all(|e| e.is_finite()) {
             return UpAxis::Axis(2, false);
         }
-        // ties go to Z, the usual CAD convention
-        let mut k = 2;
-        for t in [1, 0] {
-            if ext[t] < ext[k] * (1.0 - 1e-3) {
-                k = t;
-            }
-        }
+        // a flat part (its thinnest extent under half the middle one) lies on
+        // its largest face; anything else stands on Z, the usual CAD convention
+        let mut order = [0, 1, 2];
+        order.sort_by(|&a, &b| ext[a].total_cmp(&ext[b]));
+        let k = if ext[order[0]] < 0.5 * ext[order[1]] { order[0] } else { 2 };
         UpAxis::Axis(k, false)
     }
 
