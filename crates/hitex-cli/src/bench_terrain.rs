@@ -84,7 +84,7 @@ pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
     build_store(&src, &meta, &dir, BuildOptions::default(), &|_, _| {})?;
     if !a.json {
         println!(
-            "hitex bench terrain: {} ({} maps, built in {:.1} s), {w}x{h}, an orbit of {} frames at 800 m, pitch 60° from the nadir, FOV 45°",
+            "hitex bench terrain: {} ({} maps, built in {:.1} s), {w}x{h}, an orbit of {} frames at 800 m, pitch 30° below the horizon, FOV 45°",
             src.describe(),
             meta.total_tiles(),
             t.elapsed().as_secs_f64(),
@@ -100,7 +100,7 @@ pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
             x: 0.5 - 0.3 * ang.sin(),
             y: 0.5 + 0.3 * ang.cos(),
             altitude: 800.0,
-            pitch: 60.0,
+            pitch: 30.0,
             heading: ang.to_degrees(),
         }
     };

@@ -177,7 +177,7 @@ fn terrain_showcase(
         size,
         budget: 400,
         altitude: Some(2500.0),
-        pitch: 62.0,
+        pitch: 28.0,
         fov: 45.0,
         wait: true,
         output,

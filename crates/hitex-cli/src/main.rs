@@ -389,8 +389,12 @@ fn run(cli: Cli) -> Result<(), CliError> {
             let t = Instant::now();
             let frame = r.render(&prepared, &prepared.camera, w, h);
             spinner.finish_and_clear();
-            let frame = frame?;
+            let mut frame = frame?;
             let ms = t.elapsed().as_secs_f64() * 1e3;
+            if s.mode == hitex_core::scene::RenderMode::Level {
+                let levels = s.textures.iter().map(|t| t.level_count()).max().unwrap_or(1);
+                hitex_render::legend::level_legend(&mut frame, levels);
+            }
             save(&frame, &output)?;
             let patches =
                 prepared.nurbs.as_ref().map_or(String::new(), |n| format!(", {} NURBS patches", n.patch_count()));

@@ -223,13 +223,24 @@ pub(crate) fn check_coregistered(
     Ok(())
 }
 
-/// Elevation colours (green lowlands, brown hills, white peaks) as a texture.
+/// Elevation colours (green lowlands, brown hills, white peaks) as a texture;
+/// heights at or below zero are sea (blue, darker with depth) when the
+/// model also has land, so that a coast reads as one.
 fn hypsometric(heights: &[f32], w: u32, h: u32) -> Result<Image, CliError> {
     let lo = heights.iter().copied().fold(f32::INFINITY, f32::min);
     let hi = heights.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    let sea = lo <= 0.0 && hi > 0.0;
+    let land_lo = if sea { 0.0 } else { lo };
     let stops = [[40.0, 110.0, 60.0], [150.0, 170.0, 90.0], [140.0, 100.0, 60.0], [245.0, 245.0, 245.0]];
+    let (shallow, deep) = ([70.0f32, 125.0, 175.0], [20.0f32, 50.0, 110.0]);
     Image::from_fn(w, h, ColorSpace::Srgb, |x, y| {
-        let t = ((heights[(y * w + x) as usize] - lo) / (hi - lo).max(1e-6)).clamp(0.0, 1.0) * 2.999;
+        let z = heights[(y * w + x) as usize];
+        if sea && z <= 0.0 {
+            let d = if lo < 0.0 { (z / lo).clamp(0.0, 1.0) } else { 0.0 };
+            let c = |k: usize| (shallow[k] + (deep[k] - shallow[k]) * d) as u8;
+            return [c(0), c(1), c(2), 255];
+        }
+        let t = ((z - land_lo) / (hi - land_lo).max(1e-6)).clamp(0.0, 1.0) * 2.999;
         let (i, f) = (t as usize, t.fract());
         let c = |k: usize| (stops[i][k] + (stops[i + 1][k] - stops[i][k]) * f) as u8;
         [c(0), c(1), c(2), 255]
@@ -309,6 +320,9 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
         name: "imagery".into(),
         texture: Some(0),
         sampler: SamplerOptions { filter: Filter::Trilinear, wrap: Wrap::Clamp, ..Default::default() },
+        // a height field: a far slope's sliver at a ridge's outline is lit as
+        // the slope it is, not as its dark underside
+        one_sided: true,
         ..Default::default()
     };
     let scene = Scene {
@@ -328,8 +342,11 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     let prepared = PreparedScene::new(&scene);
     let mut r = AnyRenderer::open(a.backend.into())?;
     let t = Instant::now();
-    let f = r.render(&prepared, &prepared.camera, a.size.0, a.size.1)?;
+    let mut f = r.render(&prepared, &prepared.camera, a.size.0, a.size.1)?;
     let ms = t.elapsed().as_secs_f64() * 1e3;
+    if a.levels {
+        hitex_render::legend::level_legend(&mut f, scene.textures[0].level_count());
+    }
     save(&f, &a.output)?;
     println!(
         "wrote {} ({}x{}, DEM {}x{} posts at {:.1} m, {}, {}, {}) in {ms:.1} ms",
@@ -602,5 +619,31 @@ pub fn run(cmd: TerrainCommand) -> Result<(), CliError> {
             println!("total: {total} maps, {:.1} MiB as RGBA8", (total as u64 * bytes) as f64 / 1048576.0);
             Ok(())
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_sea_is_blue_and_the_land_keeps_its_ramp() {
+        // a coast: sea at 0 and -20 m, land up to 100 m
+        let heights = [-20.0, 0.0, 1.0, 100.0];
+        let img = hypsometric(&heights, 4, 1).unwrap();
+        let px = |x: u32| img.texel(x, 0);
+        for x in [0, 1] {
+            let p = px(x);
+            assert!(p[2] > p[1] && p[2] > p[0], "sea at {x}: {p:?}");
+        }
+        assert!(px(0)[2] < px(1)[2], "deeper water is darker");
+        let shore = px(2);
+        assert!(shore[1] > shore[2], "land just above the sea is green: {shore:?}");
+        assert!(px(3)[..3].iter().all(|&c| c >= 240), "the highest land is white: {:?}", px(3));
+        // a model without sea (all above zero, or all below) uses the whole ramp
+        let inland = hypsometric(&[200.0, 300.0], 2, 1).unwrap();
+        assert!(inland.texel(0, 0)[1] > inland.texel(0, 0)[2]);
+        let basin = hypsometric(&[-400.0, -100.0], 2, 1).unwrap();
+        assert!(basin.texel(0, 0)[1] > basin.texel(0, 0)[2]);
     }
 }

@@ -211,8 +211,8 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
 pub struct FlyArgs {
     /// The store (built by `hitex terrain build`).
     pub store: PathBuf,
-    /// Flight path TOML: `[[key]]` tables with t, x, y (fractions of the extent), altitude (m),
-    /// pitch (degrees from the nadir), heading (degrees from north); default: an orbit.
+    /// Flight path TOML: `[[key]]` tables with t, x, y (fractions of the extent), altitude (m above
+    /// the datum), pitch (degrees below the horizon), heading (degrees from north); default: an orbit.
     #[arg(long)]
     pub path: Option<PathBuf>,
     /// Frames to render.
@@ -227,8 +227,8 @@ pub struct FlyArgs {
     /// Orbit altitude in metres (default: a tenth of the extent).
     #[arg(long, allow_negative_numbers = true)]
     pub altitude: Option<f64>,
-    /// Orbit pitch from the nadir, degrees.
-    #[arg(long, default_value_t = 60.0, allow_negative_numbers = true)]
+    /// Orbit pitch below the horizon, degrees (90 looks straight down).
+    #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
     pub pitch: f64,
     /// Horizontal field of view, degrees.
     #[arg(long, default_value_t = 45.0, allow_negative_numbers = true)]
@@ -405,9 +405,10 @@ pub struct PathKey {
     pub x: f64,
     /// South position as a fraction of the extent.
     pub y: f64,
-    /// Altitude above the ground, metres.
+    /// Altitude above the datum, metres: above the flat ground, or above the
+    /// DEM's zero when the store draws relief.
     pub altitude: f64,
-    /// Pitch from the nadir, degrees.
+    /// Pitch below the horizon, degrees (90 looks straight down).
     pub pitch: f64,
     /// Heading, degrees clockwise from north.
     pub heading: f64,
@@ -421,7 +422,9 @@ struct PathFile {
 
 fn load_path(path: &Path) -> Result<Vec<PathKey>, CliError> {
     let text = std::fs::read_to_string(path).map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?;
-    let f: PathFile = toml::from_str(&text).map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?;
+    let f: PathFile = toml::from_str(&text).map_err(|e| {
+        CliError::Input(format!("{}: {}", path.display(), hitex_core::scene::desc::toml_message(&text, &e)))
+    })?;
     let mut keys = f.key;
     if keys.is_empty() {
         return Err(CliError::Input(format!("{}: no [[key]] tables", path.display())));
@@ -446,9 +449,9 @@ fn load_path(path: &Path) -> Result<Vec<PathKey>, CliError> {
                 k.y
             )));
         }
-        if !(0.0..90.0).contains(&k.pitch) {
+        if !(k.pitch > 0.0 && k.pitch <= 90.0) {
             return Err(CliError::Input(format!(
-                "{}: key[{i}].pitch = {}° must be in [0, 90) from the nadir (90 looks at the horizon)",
+                "{}: key[{i}].pitch = {}° must be in (0, 90] below the horizon (90 looks straight down)",
                 path.display(),
                 k.pitch
             )));
@@ -482,9 +485,10 @@ pub fn open_cache(store: &Path, meta: &StoreMeta, budget: usize) -> Result<Resid
     ResidentMaps::new(budget, loader).map_err(CliError::Input)
 }
 
-/// The camera of a path key over a store of `extent` finest texels.
+/// The camera of a path key over a store of `extent` finest texels (the
+/// key's pitch below the horizon becomes the paper's angle from the nadir).
 pub fn camera_at(k: &PathKey, meta: &StoreMeta, extent: DVec2, fov: f64) -> FlyCamera {
-    FlyCamera::new(k.x * extent.x, k.y * extent.y, k.altitude / meta.pixel[0], k.pitch, k.heading, fov)
+    FlyCamera::new(k.x * extent.x, k.y * extent.y, k.altitude / meta.pixel[0], 90.0 - k.pitch, k.heading, fov)
 }
 
 /// One frame's cache traffic, uniforms and page table; with `wait`, the
@@ -540,8 +544,11 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
             if !(alt.is_finite() && alt > 0.0) {
                 return Err(CliError::Input(format!("--altitude {alt}: the camera is below the ground")));
             }
-            if !(0.0..90.0).contains(&a.pitch) {
-                return Err(CliError::Input(format!("--pitch {}° must be in [0, 90) from the nadir", a.pitch)));
+            if !(a.pitch > 0.0 && a.pitch <= 90.0) {
+                return Err(CliError::Input(format!(
+                    "--pitch {}° must be in (0, 90] below the horizon (90 looks straight down)",
+                    a.pitch
+                )));
             }
             // an orbit round the centre, looking inwards
             (0..=16)

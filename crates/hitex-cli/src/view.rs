@@ -342,7 +342,8 @@ impl Content {
                     x: flight.x,
                     y: flight.y,
                     altitude: flight.altitude,
-                    pitch: flight.pitch,
+                    // the key's pitch is below the horizon; the flight's from the nadir
+                    pitch: 90.0 - flight.pitch,
                     heading: flight.heading,
                 };
                 let cam = crate::terrain_store_cmd::camera_at(&key, meta, extent, *fov);
@@ -545,8 +546,12 @@ fn light_sliders(ui: &mut egui::Ui, light: &mut [f32; 2]) -> bool {
 
 fn flight_label(ui: &mut egui::Ui, f: &Flight) {
     ui.label(format!(
-        "x {:.3}, y {:.3}, altitude {:.0}, pitch {:.0}° from the nadir, heading {:.0}°",
-        f.x, f.y, f.altitude, f.pitch, f.heading
+        "x {:.3}, y {:.3}, altitude {:.0}, pitch {:.0}° below the horizon, heading {:.0}°",
+        f.x,
+        f.y,
+        f.altitude,
+        90.0 - f.pitch,
+        f.heading
     ));
     ui.label("W/S A/D fly, Q/E down/up, arrows or drag turn and tilt, wheel altitude");
 }

@@ -255,3 +255,85 @@ fn tiny_curvature_ranges_keep_their_digits() {
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(out.contains("1.00e-6") && !out.contains("0.0000"), "{out}");
 }
+
+/// Pixels at least 40 levels darker (mean of RGB) than all but the darkest
+/// of their eight neighbours: isolated specks, not edges or notches.
+fn specks(path: &std::path::Path) -> usize {
+    let img = image::open(path).unwrap().to_rgb8();
+    let lum = |x: u32, y: u32| img.get_pixel(x, y).0.iter().map(|&c| c as i32).sum::<i32>() / 3;
+    let mut n = 0;
+    for y in 1..img.height() - 1 {
+        for x in 1..img.width() - 1 {
+            let mut around: Vec<i32> = (0..9).filter(|&k| k != 4).map(|k| lum(x + k % 3 - 1, y + k / 3 - 1)).collect();
+            around.sort_unstable();
+            if around[1] - lum(x, y) >= 40 {
+                n += 1;
+            }
+        }
+    }
+    n
+}
+
+#[test]
+fn ridge_outlines_are_clean_on_both_backends() {
+    // the far slope's slivers at a ridge's outline used to be lit as their
+    // underside: isolated dark pixels along every ridge
+    let dem = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/jacksboro_fault_dem.npz");
+    let d = tmp("ridges");
+    let require = std::env::var("HITEX_REQUIRE_GPU").is_ok_and(|v| v == "1");
+    for backend in ["cpu", "gpu"] {
+        let out = d.join(format!("{backend}.png"));
+        let o = hitex(&[
+            "terrain",
+            "render",
+            "--dem",
+            dem,
+            "--size",
+            "640x480",
+            "--backend",
+            backend,
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        if backend == "gpu" && !o.status.success() && !require {
+            eprintln!("SKIPPED ridge outlines on the GPU backend: {}", String::from_utf8_lossy(&o.stderr));
+            continue;
+        }
+        assert!(o.status.success(), "{backend}: {}", String::from_utf8_lossy(&o.stderr));
+        let n = specks(&out);
+        assert!(n <= 2, "{backend}: {n} dark specks along the ridges");
+    }
+}
+
+#[test]
+fn pitch_is_below_the_horizon_everywhere() {
+    let d = tmp("pitch");
+    let store = d.join("store");
+    let o = hitex(&["terrain", "build", "--procedural", "300x300", "-o", store.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let dem = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/jacksboro_fault_dem.npz");
+    let out = d.join("o.png");
+    let frames = d.join("frames");
+    let (s, o_, f) = (store.to_str().unwrap(), out.to_str().unwrap(), frames.to_str().unwrap());
+    // one convention and one wording for out-of-range pitches
+    for args in [
+        vec!["terrain", "render", "--dem", dem, "--pitch", "95", "-o", o_],
+        vec!["terrain", "spans", "--pitch", "95", "--frames", "1", "-o", o_],
+        vec!["terrain", "fly", s, "--pitch", "95", "--frames", "1", "-o", f],
+    ] {
+        let o = hitex(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        let e = error_lines(&o).join("\n");
+        assert!(e.contains("below the horizon"), "{args:?}: {e}");
+    }
+    // straight down is 90 for a flight, as in spans
+    let o =
+        hitex(&["terrain", "fly", s, "--pitch", "90", "--frames", "1", "--size", "64x48", "--backend", "cpu", "-o", f]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // a path key in the old sense (0 = straight down) is refused with the convention named
+    let path = d.join("path.toml");
+    std::fs::write(&path, "[[key]]\nt = 0\nx = 0.5\ny = 0.5\naltitude = 100\npitch = 0\nheading = 0\n").unwrap();
+    let o = hitex(&["terrain", "fly", s, "--path", path.to_str().unwrap(), "--frames", "1", "-o", f]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(error_lines(&o).join("\n").contains("below the horizon"));
+}

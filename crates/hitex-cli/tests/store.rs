@@ -124,7 +124,7 @@ fn olinda_relief_flight_with_the_span_samplers() {
             "--altitude",
             "2500",
             "--pitch",
-            "62",
+            "28",
             "--wait",
             "--backend",
             "cpu",

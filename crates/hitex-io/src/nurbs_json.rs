@@ -54,8 +54,12 @@ pub fn load_nurbs_json(path: &Path) -> Result<Vec<IgesSurface>, IoError> {
 
 /// Parses native JSON text; errors name the patch and field.
 pub fn parse_nurbs_json(text: &str) -> Result<Vec<IgesSurface>, String> {
-    let f: FileJson =
-        serde_json::from_str(text).map_err(|e| format!("line {}, column {}: {e}", e.line(), e.column()))?;
+    let f: FileJson = serde_json::from_str(text).map_err(|e| {
+        // serde_json's message ends with the position; state it once, first
+        let full = e.to_string();
+        let msg = full.rsplit_once(" at line ").map_or(full.as_str(), |(m, _)| m);
+        format!("line {}, column {}: {msg}", e.line(), e.column())
+    })?;
     if f.format != "hitex-nurbs" {
         return Err(format!("format is '{}', expected 'hitex-nurbs'", f.format));
     }

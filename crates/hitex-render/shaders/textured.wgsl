@@ -29,6 +29,8 @@ struct Material {
     level_count: u32,
     size: vec2<u32>,
     atlas_size: vec2<u32>,
+    one_sided: u32,  // 1: the normal as authored, also seen from behind
+    _pad: u32,
     origins: array<vec4<u32>, 8>, // level 2k at .xy, level 2k+1 at .zw
 };
 
@@ -226,10 +228,10 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     let d_dx = (du_x - uv * dq_x) / q;
     let d_dy = (du_y - uv * dq_y) / q;
     let jac = vec4<f32>(d_dx.x, d_dx.y, d_dy.x, d_dy.y);
-    // two-sided normal
+    // two-sided normal (one-sided materials keep it as authored)
     let view = normalize(frame.camera.xyz - in.world);
     var n = normalize(in.normal);
-    if dot(n, view) < 0.0 {
+    if dot(n, view) < 0.0 && material.one_sided == 0u {
         n = -n;
     }
     let mode = frame.params.x;

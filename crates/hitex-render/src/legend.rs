@@ -154,7 +154,8 @@ pub fn diverging_legend(f: &mut Frame, range: f32, title: &[&str]) {
 }
 
 /// Draws a key of discrete colours (e.g. MIP levels) in the legend strip:
-/// one swatch and label per entry, under up to two title lines.
+/// one swatch and label per entry, under up to two title lines, on a dark
+/// backing so that it reads over any image.
 pub fn swatch_legend(f: &mut Frame, title: &[&str], entries: &[([u8; 3], String)]) {
     if legend_width(f.width, f.height) == 0 {
         return;
@@ -164,6 +165,16 @@ pub fn swatch_legend(f: &mut Frame, title: &[&str], entries: &[([u8; 3], String)
     let white = [235, 235, 235];
     let line = 7 * scale;
     let mut y = (f.height as i64 / 6).max(2 * scale);
+    let rows = (title.len().min(2) + entries.len()) as i64;
+    let bottom = (y + rows * line + scale).min(f.height as i64);
+    for by in (y - 2 * scale).max(0)..bottom {
+        for bx in (x0 - scale).max(0)..f.width as i64 {
+            let i = (by as usize * f.width as usize + bx as usize) * 4;
+            for c in &mut f.rgba[i..i + 3] {
+                *c = (*c as u16 * 3 / 10) as u8;
+            }
+        }
+    }
     for t in title.iter().take(2) {
         let cut: String = t.chars().take(COLUMNS as usize).collect();
         text(f, x0, y, scale, &cut, white);
@@ -182,6 +193,19 @@ pub fn swatch_legend(f: &mut Frame, title: &[&str], entries: &[([u8; 3], String)
         text(f, x0 + 7 * scale, y, scale, &cut, white);
         y += line;
     }
+}
+
+/// The MIP-level key: the ramp's colour of each level `0..levels` (at most
+/// 11: the ramp's last colour stands for every level above).
+pub fn level_legend(f: &mut Frame, levels: usize) {
+    let entries: Vec<([u8; 3], String)> = (0..levels.clamp(1, 11))
+        .map(|l| {
+            let c = crate::cpu::textured::level_color(l as f32);
+            let q = |v: f32| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+            ([q(c.x), q(c.y), q(c.z)], if l == 10 && levels > 11 { "10+".to_string() } else { l.to_string() })
+        })
+        .collect();
+    swatch_legend(f, &["MIP LEVEL"], &entries);
 }
 
 #[cfg(test)]

@@ -74,8 +74,11 @@ pub struct MaterialUniform {
     pub size: [u32; 2],
     /// Size of the GPU atlas holding every level (see [`AtlasLayout`]).
     pub atlas_size: [u32; 2],
+    /// 1: light by the normal as authored, also seen from behind; 0: turn
+    /// the normal towards the eye.
+    pub one_sided: u32,
     /// Padding to the 16-byte alignment of `origins` in WGSL.
-    pub _pad: [u32; 2],
+    pub _pad: u32,
     /// Origin of level `l` in the atlas: `origins[l / 2]` holds levels `2k`
     /// (x, y) and `2k + 1` (z, w). Up to [`MAX_ATLAS_LEVELS`] levels.
     pub origins: [[u32; 4]; MAX_ATLAS_LEVELS / 2],
@@ -247,7 +250,8 @@ impl PreparedScene {
                 level_count: level_count.min(MAX_ATLAS_LEVELS as u32),
                 size,
                 atlas_size: [layout.width, layout.height],
-                _pad: [0; 2],
+                one_sided: m.one_sided as u32,
+                _pad: 0,
                 origins,
             });
             material_textures.push(tex);

@@ -310,6 +310,10 @@ pub struct MaterialDesc {
     /// Highlight exponent.
     #[serde(default = "d_shininess")]
     pub shininess: f32,
+    /// Light by the normal as authored, also seen from behind (height
+    /// fields); by default the normal is turned towards the eye.
+    #[serde(default)]
+    pub one_sided: bool,
 }
 
 /// `[[object]]`: a procedural `mesh` or a mesh `file`.
@@ -430,22 +434,26 @@ fn finite_n(key: &str, v: &[f32]) -> Result<(), CoreError> {
     Ok(())
 }
 
+/// A TOML error on one line: `line L, column C: message` (the position
+/// once, from the error's span into `text`).
+pub fn toml_message(text: &str, e: &toml::de::Error) -> String {
+    let msg = e.message().trim_end().replace('\n', " ");
+    match e.span() {
+        Some(span) => {
+            let before = &text[..span.start.min(text.len())];
+            let line = before.matches('\n').count() + 1;
+            let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+            format!("line {line}, column {col}: {msg}")
+        }
+        None => msg,
+    }
+}
+
 impl SceneDesc {
     /// Parses TOML text (syntax, types and unknown keys are checked here; the
     /// message carries line and column).
     pub fn from_toml(text: &str) -> Result<Self, CoreError> {
-        toml::from_str(text).map_err(|e| {
-            let msg = e.message().trim_end().replace('\n', " ");
-            match e.span() {
-                Some(span) => {
-                    let before = &text[..span.start.min(text.len())];
-                    let line = before.matches('\n').count() + 1;
-                    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-                    CoreError::Toml(format!("line {line}, column {col}: {msg}"))
-                }
-                None => CoreError::Toml(msg),
-            }
-        })
+        toml::from_str(text).map_err(|e| CoreError::Toml(toml_message(text, &e)))
     }
 
     /// The embedded showcase.
@@ -593,6 +601,7 @@ impl SceneDesc {
                 uv_scale: Vec2::from_array(m.uv_scale),
                 specular: m.specular,
                 shininess: m.shininess,
+                one_sided: m.one_sided,
             });
         }
         if materials.is_empty() {

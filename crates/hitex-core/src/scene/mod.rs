@@ -32,6 +32,10 @@ pub struct Material {
     pub specular: f32,
     /// Blinn–Phong exponent.
     pub shininess: f32,
+    /// Light the surface by its normal as authored, also where the eye sees
+    /// its back (height fields: a far slope's sliver at a ridge's outline is
+    /// lit as the slope it is); otherwise the normal is turned to the eye.
+    pub one_sided: bool,
 }
 
 impl Default for Material {
@@ -44,6 +48,7 @@ impl Default for Material {
             uv_scale: Vec2::ONE,
             specular: 0.0,
             shininess: 32.0,
+            one_sided: false,
         }
     }
 }

@@ -202,7 +202,8 @@ impl QuadShader<VARYINGS> for TexturedProgram<'_> {
         let cam = V3::splat(Vec3::new(f.camera[0], f.camera[1], f.camera[2]));
         let view = cam.sub(pos).normalize_or_zero();
         let n = nrm.normalize_or_zero();
-        let back = n.dot(view).cmplt(Lanes::ZERO);
+        // (one-sided materials keep the normal as authored)
+        let back = if m.one_sided == 0 { n.dot(view).cmplt(Lanes::ZERO) } else { Lanes::ZERO.cmplt(Lanes::ZERO) };
         let sign = Lanes::select(back, Lanes::splat(-1.0), Lanes::ONE);
         let n = n.scale(sign);
         let mut out = [[0u8; 4]; 4];
