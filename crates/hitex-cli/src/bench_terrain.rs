@@ -134,7 +134,8 @@ pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
             let cam = camera_at(&key(i), meta, extent, 45.0);
             let (_, u, pages) =
                 frame_setup(&mut cache.borrow_mut(), meta, &cam, (w, h), 45.0, per_side, false, &mut start);
-            r.render_fly(&u.with_sampler(sampler), &pages, FlyGround::Flat).map(|f| f.0)
+            // rendering only: the bank traffic is measured below
+            r.render_fly(&u.with_sampler(sampler), &pages, FlyGround::Flat, false).map(|f| f.0)
         })
     };
     let cases: Vec<(String, CaseFn)> = FlySampler::ALL.iter().map(|&s| (s.name().to_string(), case(s))).collect();

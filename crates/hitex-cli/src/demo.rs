@@ -186,6 +186,7 @@ fn terrain_showcase(
         sampler,
         exaggeration: 3.0,
         no_aircraft: false,
+        stats: true,
     };
     let load = |path: &Path| -> Result<Frame, CliError> {
         let img = hitex_io::load_image(path, hitex_core::texture::ColorSpace::Srgb)?;

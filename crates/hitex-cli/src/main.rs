@@ -287,17 +287,19 @@ impl AnyRenderer {
             Engine::Gpu(g) => g.render_btf(scene, camera, light, w, h),
         })
     }
-    /// Renders one flight frame over a GST store.
+    /// Renders one flight frame over a GST store; with `stats`, the CPU
+    /// backend also returns the span sampler's bank traffic.
     pub fn render_fly(
         &mut self,
         u: &hitex_render::terrain::FlyUniform,
         pages: &hitex_render::terrain::FlyPages,
         ground: hitex_render::terrain::FlyGround<'_>,
+        stats: bool,
     ) -> Result<(Frame, Option<hitex_core::texture::span::BankModel>), RenderError> {
         let mut banks = None;
         let frame = self.run(|b| match b {
             Engine::Cpu(_) => {
-                let f = hitex_render::cpu::terrain::render_fly(u, pages, ground)?;
+                let f = hitex_render::cpu::terrain::render_fly_with(u, pages, ground, stats)?;
                 banks = f.banks;
                 Ok(f.frame)
             }

@@ -255,6 +255,10 @@ pub struct FlyArgs {
     /// No aircraft ahead of the camera (relief only).
     #[arg(long)]
     pub no_aircraft: bool,
+    /// Record every span access in the bank model and report conflicts (CPU
+    /// backend, span samplers); without it frames are only rendered.
+    #[arg(long)]
+    pub stats: bool,
 }
 
 /// What the flight draws under the sky.
@@ -636,7 +640,7 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
             (Some(r), Some(m)) => FlyGround::Mesh { mesh: m, generic: &r.generic },
             _ => FlyGround::Flat,
         };
-        let (frame, banks) = renderer.render_fly(&u, &pages, ground)?;
+        let (frame, banks) = renderer.render_fly(&u, &pages, ground, a.stats)?;
         let ms = start.elapsed().as_secs_f64() * 1e3;
         times.push(ms);
         peak = (peak.0.max(stats.resident), peak.1.max(stats.bytes));
@@ -664,6 +668,8 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
                 conflicts.1,
                 sampler.banks().pow(2)
             );
+        } else if !a.stats {
+            println!("bank conflicts: not recorded (--stats records them on the CPU backend)");
         } else {
             println!("bank conflicts: not modelled on {} (the CPU backend records them)", renderer.name());
         }

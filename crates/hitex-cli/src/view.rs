@@ -371,7 +371,7 @@ impl Content {
                     s.missing,
                     s.failed
                 );
-                Ok(r.render_fly(&u, &pages, hitex_render::terrain::FlyGround::Flat)?.0)
+                Ok(r.render_fly(&u, &pages, hitex_render::terrain::FlyGround::Flat, false)?.0)
             }
             Content::Ground { pyr, wrap, flight, mode, banks } => {
                 let view = FlightView {

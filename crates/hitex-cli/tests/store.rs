@@ -126,6 +126,7 @@ fn olinda_relief_flight_with_the_span_samplers() {
             "--pitch",
             "28",
             "--wait",
+            "--stats",
             "--backend",
             "cpu",
             "--sampler",

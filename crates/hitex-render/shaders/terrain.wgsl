@@ -16,6 +16,10 @@ struct Pages {
     slots: array<vec2<i32>>,        // per level and slot: (layer, level of the serving map); layer < 0: no data
 }
 
+// the sampler, fixed per pipeline (0 trilinear, 1 span3, 2 span4, 3 bicubic):
+// each pipeline compiles only its own path (params.x carries the same code)
+override SAMPLER: u32 = 0u;
+
 @group(0) @binding(0) var<uniform> fly: Fly;
 @group(0) @binding(1) var<storage, read> pages: Pages;
 @group(0) @binding(2) var maps: texture_2d_array<f32>;
@@ -209,7 +213,7 @@ fn span_level(s: Span, me: u32, k_in: i32, b: i32, bicubic: bool) -> vec4<f32> {
 }
 
 fn span_sample(s: Span, me: u32) -> vec4<f32> {
-    let sampler = fly.params.x;
+    let sampler = SAMPLER;
     var b = 4;
     if (sampler == 1u) {
         b = 3;
@@ -278,7 +282,7 @@ fn sky(y: f32) -> vec3<f32> {
 fn fs_main(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let x = frag.x;
     let y = frag.y;
-    if (fly.params.x != 0u) {
+    if (SAMPLER != 0u) {
         // the span this pixel belongs to: its four ground points, the same on every lane
         let x0 = floor(x * 0.5) * 2.0 + 0.5;
         let y0 = floor(y * 0.5) * 2.0 + 0.5;
@@ -342,7 +346,7 @@ fn fs_mesh(in: MeshOut) -> @location(0) vec4<f32> {
         let c = generic(p, foot);
         return encode(c.rgb * in.shade);
     }
-    if (fly.params.x == 0u) {
+    if (SAMPLER == 0u) {
         let s = trilinear(p, foot);
         return encode(s.rgb + GROUND * (1.0 - s.a));
     }

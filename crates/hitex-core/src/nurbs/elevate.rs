@@ -1,6 +1,8 @@
 //! Knot insertion (A5.1) and exact degree elevation.
 //!
-//! Degree elevation works the classical way: split the surface into Bézier
+//! Degree elevation works the classical way: clamp the knot vector at the
+//! ends of the domain (unclamped and periodic knots: see [`clamp_curve`]),
+//! split the surface into Bézier
 //! strips by knot insertion, raise each Bézier segment's degree by the
 //! closed-form rule `Q_i = (i/(p+1)) P_{i−1} + (1 − i/(p+1)) P_i` in
 //! homogeneous space, and join the segments again. The result is the same
@@ -33,8 +35,52 @@ pub fn insert_knot_curve(p: usize, knots: &[f64], pw: &[[f64; 4]], u: f64) -> (V
     (nk, q)
 }
 
-/// Elevates a clamped curve of homogeneous points from degree p to p + 1.
+/// The same curve over its domain `[U[p], U[n+1]]` with a clamped knot
+/// vector (each end p + 1 times): each end knot is inserted until it has
+/// multiplicity p, where the curve passes through one control point; the
+/// points and knots beyond it, which only shape the curve outside the
+/// domain, are dropped. Clamped curves come back unchanged.
+pub fn clamp_curve(p: usize, knots: &[f64], pw: &[[f64; 4]]) -> (Vec<f64>, Vec<[f64; 4]>) {
+    let (mut k, mut q) = (knots.to_vec(), pw.to_vec());
+    let (a, b) = (knots[p], knots[pw.len()]);
+    let count = |k: &[f64], x: f64| k.iter().filter(|&&t| t == x).count();
+    // the start: a to multiplicity p, then from its first occurrence j keep
+    // P[j−1]… (the curve's point at a) under a clamped start
+    if k[..p].iter().any(|&t| t != a) {
+        while count(&k, a) < p {
+            (k, q) = insert_knot_curve(p, &k, &q, a);
+        }
+        let j = k.iter().position(|&t| t == a).unwrap_or(0);
+        if j > 0 {
+            q.drain(..j - 1);
+            let mut nk = vec![a; p + 1];
+            nk.extend_from_slice(&k[j + p..]);
+            k = nk;
+        }
+    }
+    // the end: b to multiplicity p, then keep …P[l−p] (l: b's last
+    // occurrence) under a clamped end
+    let n = q.len() - 1;
+    if k[n + 2..].iter().any(|&t| t != b) {
+        while count(&k, b) < p {
+            (k, q) = insert_knot_curve(p, &k, &q, b);
+        }
+        if let Some(l) = k.iter().rposition(|&t| t == b)
+            && l >= p
+        {
+            q.truncate(l - p + 1);
+            k.truncate(l + 1);
+            k.push(b);
+        }
+    }
+    (k, q)
+}
+
+/// Elevates a curve of homogeneous points from degree p to p + 1 over its
+/// domain (an unclamped knot vector is clamped first, [`clamp_curve`]).
 pub fn elevate_curve(p: usize, knots: &[f64], pw: &[[f64; 4]]) -> (Vec<f64>, Vec<[f64; 4]>) {
+    let (knots, pw) = clamp_curve(p, knots, pw);
+    let (knots, pw) = (&knots[..], &pw[..]);
     // decompose into Bézier segments: every interior knot to multiplicity p
     let (mut k, mut q) = (knots.to_vec(), pw.to_vec());
     let interior: Vec<f64> = {
@@ -116,6 +162,75 @@ mod tests {
     use super::*;
     use crate::nurbs::surface::tests::wavy;
     use proptest::prelude::*;
+
+    /// A bicubic surface on unclamped knot vectors: uniform in u (as a
+    /// periodic B-spline's), unclamped at one end only in v.
+    fn unclamped() -> NurbsSurface {
+        let (nu, nv) = (7, 6);
+        let mut pts = Vec::new();
+        for j in 0..nv {
+            for i in 0..nu {
+                let (x, y) = (i as f64, j as f64);
+                pts.push([x, y, (0.9 * x).sin() * (0.7 * y).cos() + 0.1 * x * y, 1.0 + 0.3 * ((i + 2 * j) % 3) as f64]);
+            }
+        }
+        let ku: Vec<f64> = (0..nu + 4).map(|i| i as f64 / 2.0).collect();
+        let kv = vec![0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 3.0, 3.5, 4.0, 4.5];
+        NurbsSurface::new(3, 3, nu, nv, ku, kv, pts).unwrap()
+    }
+
+    #[test]
+    fn unclamped_knots_are_clamped_before_elevation() {
+        let s = unclamped();
+        let ((u0, u1), (v0, v1)) = s.domain();
+        assert_eq!((u0, u1, v0, v1), (1.5, 3.5, 0.0, 3.0));
+        for e in [s.elevate(true), s.elevate(false), s.elevate(true).elevate(false)] {
+            assert_eq!(e.domain(), s.domain());
+            // the elevated direction is clamped: p + 1 equal knots at each end
+            if e.degree_u > s.degree_u {
+                let (p, k) = (e.degree_u, &e.knots_u);
+                assert!(k[..=p].iter().all(|&x| x == u0) && k[k.len() - p - 1..].iter().all(|&x| x == u1), "{k:?}");
+            }
+            for a in 0..=20 {
+                for b in 0..=20 {
+                    let (u, v) = (u0 + (u1 - u0) * a as f64 / 20.0, v0 + (v1 - v0) * b as f64 / 20.0);
+                    let (p, q) = (s.point(u, v), e.point(u, v));
+                    for t in 0..3 {
+                        assert!((p[t] - q[t]).abs() < 1e-10, "({u}, {v}): {p:?} vs {q:?}");
+                    }
+                }
+            }
+        }
+        // clamping alone keeps the curve, and a clamped curve is left as it is
+        let pw = s.homogeneous();
+        let row = &pw[..7];
+        let (k, q) = clamp_curve(3, &s.knots_u, row);
+        assert_eq!(k.len(), q.len() + 4);
+        let (k2, q2) = clamp_curve(3, &k, &q);
+        assert_eq!((k2, q2), (k.clone(), q.clone()));
+        // knot insertion on the unclamped vector keeps the surface as well
+        let (ki, qi) = insert_knot_curve(3, &s.knots_u, row, 2.2);
+        let curve = |knots: &[f64], pts: &[[f64; 4]], u: f64| {
+            let c = NurbsSurface::new(
+                3,
+                1,
+                pts.len(),
+                2,
+                knots.to_vec(),
+                vec![0.0, 0.0, 1.0, 1.0],
+                pts.iter().chain(pts).map(|c| [c[0] / c[3], c[1] / c[3], c[2] / c[3], c[3]]).collect(),
+            )
+            .unwrap();
+            c.point(u, 0.0)
+        };
+        for a in 0..=20 {
+            let u = u0 + (u1 - u0) * a as f64 / 20.0;
+            let (p, q, r) = (curve(&s.knots_u, row, u), curve(&ki, &qi, u), curve(&k, &q, u));
+            for t in 0..3 {
+                assert!((p[t] - q[t]).abs() < 1e-10 && (p[t] - r[t]).abs() < 1e-10, "{u}: {p:?} {q:?} {r:?}");
+            }
+        }
+    }
 
     proptest! {
         #[test]

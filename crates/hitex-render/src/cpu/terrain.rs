@@ -336,11 +336,11 @@ impl Program<'_> {
     }
 
     /// Linear RGB of the flat-ground span whose top-left pixel is (px, py).
-    fn shade_flat_span(&self, px: u32, py: u32, banks: &mut BankModel) -> [[f32; 3]; 4] {
+    fn shade_flat_span(&self, px: u32, py: u32, banks: Option<&mut BankModel>) -> [[f32; 3]; 4] {
         let pts: [Option<[f32; 2]>; 4] = std::array::from_fn(|i| {
             self.ground((px + (i as u32 & 1)) as f32 + 0.5, (py + (i as u32 >> 1)) as f32 + 0.5)
         });
-        let c = self.span(pts, self.u.sampler(), Some(banks));
+        let c = self.span(pts, self.u.sampler(), banks);
         std::array::from_fn(|i| match pts[i] {
             Some(_) => Self::over_ground(c[i]),
             None => sky((py + (i as u32 >> 1)) as f32 + 0.5, self.u.sizes[1] as f32),
@@ -364,7 +364,7 @@ fn encode(c: [f32; 3]) -> [u8; 4] {
 /// varyings map x, map y, kind, light.
 struct MeshProgram<'a> {
     prog: &'a Program<'a>,
-    /// Bank models, one per worker thread.
+    /// Bank models, one per worker thread (empty: no statistics).
     banks: Vec<Mutex<BankModel>>,
 }
 
@@ -384,6 +384,7 @@ impl QuadShader<4> for MeshProgram<'_> {
         } else {
             match self.prog.u.sampler() {
                 FlySampler::Trilinear => std::array::from_fn(|i| self.prog.trilinear(p[i], foot(i))),
+                s if self.banks.is_empty() => self.prog.span(p.map(Some), s, None),
                 s => {
                     let slot = rayon::current_thread_index().unwrap_or(0) % self.banks.len();
                     match self.banks[slot].lock() {
@@ -447,8 +448,21 @@ fn bind<'a>(
     Ok(Program { u, pages, slots, generic, lut: decode_table(ColorSpace::Srgb) })
 }
 
-/// Renders one flight frame on the CPU.
+/// Renders one flight frame on the CPU, recording the span sampler's bank
+/// traffic (see [`render_fly_with`]).
 pub fn render_fly(u: &FlyUniform, pages: &FlyPages, ground: FlyGround<'_>) -> Result<FlyFrame, RenderError> {
+    render_fly_with(u, pages, ground, true)
+}
+
+/// Renders one flight frame on the CPU; with `stats`, every span access is
+/// recorded in a bank model (the frame's [`FlyFrame::banks`]), which costs
+/// time a renderer without that question need not spend.
+pub fn render_fly_with(
+    u: &FlyUniform,
+    pages: &FlyPages,
+    ground: FlyGround<'_>,
+    stats: bool,
+) -> Result<FlyFrame, RenderError> {
     let (w, h) = (u.sizes[0], u.sizes[1]);
     let sampler = u.sampler();
     match ground {
@@ -474,7 +488,7 @@ pub fn render_fly(u: &FlyUniform, pages: &FlyPages, ground: FlyGround<'_>) -> Re
                         let py = sy as u32 * 2;
                         let two = pair.len() > (w * 4) as usize;
                         for sx in 0..w.div_ceil(2) {
-                            let c = prog.shade_flat_span(sx * 2, py, &mut m);
+                            let c = prog.shade_flat_span(sx * 2, py, stats.then_some(&mut m));
                             for (i, c) in c.iter().enumerate() {
                                 let (x, y) = (sx * 2 + (i as u32 & 1), i as u32 >> 1);
                                 if x < w && (y == 0 || two) {
@@ -492,18 +506,18 @@ pub fn render_fly(u: &FlyUniform, pages: &FlyPages, ground: FlyGround<'_>) -> Re
                             a
                         },
                     );
-                Some(banks)
+                stats.then_some(banks)
             };
             Ok(FlyFrame { frame: Frame { width: w, height: h, rgba }, banks })
         }
         FlyGround::Mesh { mesh, generic } => {
             let prog = bind(u, pages, Some(generic))?;
-            render_mesh(&prog, mesh, sampler)
+            render_mesh(&prog, mesh, sampler, stats)
         }
     }
 }
 
-fn render_mesh(prog: &Program<'_>, mesh: &FlyMesh, sampler: FlySampler) -> Result<FlyFrame, RenderError> {
+fn render_mesh(prog: &Program<'_>, mesh: &FlyMesh, sampler: FlySampler, stats: bool) -> Result<FlyFrame, RenderError> {
     let u = &prog.u;
     let (w, h) = (u.sizes[0], u.sizes[1]);
     if mesh.indices.iter().any(|&i| i as usize >= mesh.vertices.len()) {
@@ -514,7 +528,7 @@ fn render_mesh(prog: &Program<'_>, mesh: &FlyMesh, sampler: FlySampler) -> Resul
     let draws =
         [crate::prepare::Draw { first_index: 0, index_count: (mesh.indices.len() / 3 * 3) as u32, material: 0 }];
     let scheme = if sampler.banks() == 3 { SpanScheme::Banks3x3 } else { SpanScheme::Banks4x4 };
-    let threads = rayon::current_num_threads().max(1);
+    let threads = if stats { rayon::current_num_threads().max(1) } else { 0 };
     let shader = MeshProgram { prog, banks: (0..threads).map(|_| Mutex::new(BankModel::new(scheme))).collect() };
     let mut target = Target::new(w, h, [0, 0, 0, 255]);
     let vp = Mat4::from_cols_array_2d(&u.view_proj);
@@ -525,7 +539,7 @@ fn render_mesh(prog: &Program<'_>, mesh: &FlyMesh, sampler: FlySampler) -> Resul
             *c = encode(sky((i / w as usize) as f32 + 0.5, h as f32));
         }
     }
-    let banks = (sampler != FlySampler::Trilinear).then(|| {
+    let banks = (stats && sampler != FlySampler::Trilinear).then(|| {
         let mut all = BankModel::new(scheme);
         for m in shader.banks {
             if let Ok(m) = m.into_inner() {

@@ -6,7 +6,7 @@
 //! array, kept for as long as the texture does not change.
 
 use super::{GpuError, GpuRenderer, trusted_module};
-use crate::terrain::{FlyGround, FlyPages, FlyUniform, FlyVertex, GenericTexture, MAP};
+use crate::terrain::{FlyGround, FlyPages, FlySampler, FlyUniform, FlyVertex, GenericTexture, MAP};
 use crate::{Frame, RenderError};
 use hitex_core::residency::MapKey;
 use std::collections::HashMap;
@@ -20,8 +20,10 @@ pub const TERRAIN_WGSL: &str = include_str!("../../shaders/terrain.wgsl");
 const MAX_LEVELS: u32 = 32;
 
 pub(crate) struct FlyGpu {
-    pipeline: wgpu::RenderPipeline,
-    mesh_pipeline: wgpu::RenderPipeline,
+    /// Flat ground, one pipeline per sampler (by [`FlySampler::code`]).
+    pipeline: Vec<wgpu::RenderPipeline>,
+    /// Meshes, one pipeline per sampler.
+    mesh_pipeline: Vec<wgpu::RenderPipeline>,
     sky_pipeline: wgpu::RenderPipeline,
     /// The generic texture the Generic layers hold.
     generic: Option<Arc<Vec<u8>>>,
@@ -92,7 +94,9 @@ impl FlyGpu {
                     vs: &str,
                     fs: &str,
                     buffers: &[Option<wgpu::VertexBufferLayout>],
-                    depth: wgpu::DepthStencilState| {
+                    depth: wgpu::DepthStencilState,
+                    sampler: u32| {
+            let constants = [("SAMPLER", sampler as f64)];
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
                 layout: Some(&pl),
@@ -108,7 +112,10 @@ impl FlyGpu {
                 fragment: Some(wgpu::FragmentState {
                     module: &module,
                     entry_point: Some(fs),
-                    compilation_options: Default::default(),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: &constants,
+                        ..Default::default()
+                    },
                     targets: &[Some(wgpu::ColorTargetState {
                         format: wgpu::TextureFormat::Rgba8Unorm,
                         blend: None,
@@ -128,10 +135,21 @@ impl FlyGpu {
         };
         // the full-screen triangle ignores depth; the mesh tests and writes it;
         // the sky fills what is still at the far plane
-        let pipeline = make("fly", "vs_main", "fs_main", &[], depth(false, wgpu::CompareFunction::Always));
-        let mesh_pipeline =
-            make("fly mesh", "vs_mesh", "fs_mesh", &[Some(vertex_layout)], depth(true, wgpu::CompareFunction::Less));
-        let sky_pipeline = make("fly sky", "vs_sky", "fs_sky", &[], depth(false, wgpu::CompareFunction::LessEqual));
+        // one pipeline per sampler: the sampler is an override constant, so
+        // each compiles only its own path (a uniform branch over all four
+        // slowed the trilinear path on a software driver)
+        let pipeline = FlySampler::ALL
+            .iter()
+            .map(|s| make("fly", "vs_main", "fs_main", &[], depth(false, wgpu::CompareFunction::Always), s.code()))
+            .collect();
+        let mesh_pipeline = FlySampler::ALL
+            .iter()
+            .map(|s| {
+                let layout = Some(vertex_layout.clone());
+                make("fly mesh", "vs_mesh", "fs_mesh", &[layout], depth(true, wgpu::CompareFunction::Less), s.code())
+            })
+            .collect();
+        let sky_pipeline = make("fly sky", "vs_sky", "fs_sky", &[], depth(false, wgpu::CompareFunction::LessEqual), 0);
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(GpuError::Device(format!("flight pipeline creation failed: {e}")));
         }
@@ -378,15 +396,19 @@ impl GpuRenderer {
             return Err(RenderError::Gpu(GpuError::Render("flight pipeline missing".into())));
         };
         let flat = mesh.is_none();
+        let code = u.sampler().code() as usize;
+        let (Some(flat_pipeline), Some(mesh_pipeline)) = (fg.pipeline.get(code), fg.mesh_pipeline.get(code)) else {
+            return Err(RenderError::Gpu(GpuError::Render("no flight pipeline for the sampler".into())));
+        };
         self.pass_and_read(w, h, [0, 0, 0, 255], |pass| {
             pass.set_bind_group(0, &group, &[]);
             if flat {
-                pass.set_pipeline(&fg.pipeline);
+                pass.set_pipeline(flat_pipeline);
                 pass.draw(0..3, 0..1);
                 return;
             }
             if let Some((v, i, n)) = &buffers {
-                pass.set_pipeline(&fg.mesh_pipeline);
+                pass.set_pipeline(mesh_pipeline);
                 pass.set_vertex_buffer(0, v.slice(..));
                 pass.set_index_buffer(i.slice(..), wgpu::IndexFormat::Uint32);
                 pass.draw_indexed(0..*n, 0, 0..1);
