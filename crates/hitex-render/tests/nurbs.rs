@@ -359,3 +359,21 @@ fn faces_meeting_along_trims_leave_no_pinholes() {
         }
     }
 }
+
+#[test]
+fn every_frame_size_renders() {
+    // blocks at the right and bottom edges have lanes outside the frame;
+    // none may be read or written
+    let cpu = CpuRenderer::new();
+    for name in ["teapot", "surface", "spray"] {
+        let m = hitex_io::models::load_model(name).unwrap();
+        let mut p = PreparedNurbs::new(m.nurbs(), &m.ranges(), 4);
+        for mode in [NurbsMode::Shaded, NurbsMode::Isophote, NurbsMode::Gauss] {
+            p.mode = mode;
+            for (w, h) in (1..=80).map(|s| (s, s)).chain([(107, 80), (17, 640), (100, 1), (1, 100), (9, 3)]) {
+                let f = cpu.render_nurbs(&p, &p.camera, w, h).unwrap();
+                assert_eq!(f.rgba.len(), (w * h * 4) as usize, "{name} {w}x{h}");
+            }
+        }
+    }
+}

@@ -536,10 +536,12 @@ fn shade_block<const K: usize, S: BlockShader<K>>(
     if S::WRITES_DEPTH {
         // late depth test on the program's depth (out-of-range depth is clipped)
         for lane in 0..LANES {
-            let d = zout[lane];
-            let ok = (0.0..=1.0).contains(&d) && d.partial_cmp(&depth[index(lane)]) == Some(std::cmp::Ordering::Less);
-            if mask & (1 << lane) != 0 && ok {
-                let i = index(lane);
+            // lanes off the mask may lie outside the frame: never index them
+            if mask & (1 << lane) == 0 {
+                continue;
+            }
+            let (d, i) = (zout[lane], index(lane));
+            if (0.0..=1.0).contains(&d) && d.partial_cmp(&depth[i]) == Some(std::cmp::Ordering::Less) {
                 depth[i] = d;
                 color[i] = rgba[lane];
             }
