@@ -305,6 +305,17 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 let names: Vec<_> = Material::ALL.iter().map(|m| m.name()).collect();
                 CliError::Input(format!("unknown material '{material}': use one of {}", names.join(", ")))
             })?;
+            if !(1..=16).contains(&supersample) {
+                return Err(CliError::Input(format!(
+                    "--supersample {supersample} must be in 1..=16 rays per texel side"
+                )));
+            }
+            if !output.extension().is_some_and(|e| e.eq_ignore_ascii_case("hbtf")) {
+                return Err(CliError::Input(format!(
+                    "-o {}: a synthesised BTF is written as .hbtf (btf export writes image sets)",
+                    output.display()
+                )));
+            }
             let grid = grid_from(theta, phi)?;
             let opts = SynthOptions { grid, size, supersample, ..Default::default() };
             let t = Instant::now();

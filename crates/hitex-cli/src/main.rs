@@ -1,5 +1,15 @@
 //! `hitex`: the command-line tool.
 
+/// `println!` for commands whose product is files (flights, span studies):
+/// once [`keep_going_on_closed_stdout`] has run, a closed stdout (`| head`)
+/// loses the remaining lines but not the files.
+macro_rules! say {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($t)*);
+    }};
+}
+
 mod bench;
 mod bench_btf;
 mod bench_terrain;
@@ -432,6 +442,18 @@ fn run(cli: Cli) -> Result<(), CliError> {
             BenchCommand::Btf(args) => bench_btf::btf(args),
             BenchCommand::Terrain(args) => bench_terrain::terrain(args),
         },
+    }
+}
+
+/// Lets a command that writes files run to its end when stdout is closed
+/// early: SIGPIPE is ignored (its lines go through [`say!`], which drops
+/// what cannot be written).
+pub(crate) fn keep_going_on_closed_stdout() {
+    #[cfg(unix)]
+    // SAFETY: setting a signal's disposition to SIG_IGN is async-signal-safe
+    // and SIG_IGN is a valid disposition for SIGPIPE.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_IGN);
     }
 }
 

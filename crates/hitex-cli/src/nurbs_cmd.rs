@@ -175,8 +175,16 @@ pub fn prepare(model: &NurbsModel, density: u32) -> PreparedNurbs {
 pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
     match cmd {
         NurbsCommand::Render(a) => {
-            if a.bands == 0 || a.stripes == 0 || a.bands > 1000 || a.stripes > 1000 {
-                return Err(CliError::Input("--bands and --stripes must be in 1..=1000".into()));
+            for (flag, v) in [("--bands", a.bands), ("--stripes", a.stripes)] {
+                if !(1..=1000).contains(&v) {
+                    return Err(CliError::Input(format!("{flag} {v} must be in 1..=1000")));
+                }
+            }
+            if !(1..=256).contains(&a.density) {
+                return Err(CliError::Input(format!(
+                    "--density {} must be in 1..=256 (triangle pairs per patch side)",
+                    a.density
+                )));
             }
             crate::image_out(&a.output)?;
             if !a.turn.is_finite() {
@@ -305,6 +313,9 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
         }
         NurbsCommand::Export { model, output } => {
             let m = load_model(&model)?;
+            for w in &m.warnings {
+                eprintln!("hitex: warning: {}: {w}", m.name);
+            }
             let ext = output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
             let text = match ext.as_deref() {
                 Some("json") => hitex_io::nurbs_json::to_nurbs_json(&m.surfaces),

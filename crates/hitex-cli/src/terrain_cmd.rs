@@ -251,6 +251,15 @@ fn hypsometric(heights: &[f32], w: u32, h: u32) -> Result<Image, CliError> {
 /// Reads an elevation model, saying on stderr what looks wrong with it.
 pub(crate) fn load_dem(path: &std::path::Path) -> Result<hitex_io::geotiff::GeoRaster, CliError> {
     let dem = load_elevation(path)?;
+    let nodata = |v: f32| !v.is_finite() || dem.nodata.is_some_and(|n| (v as f64 - n).abs() < 1e-6);
+    if (0..dem.width as usize * dem.height as usize).all(|i| nodata(dem.data[i * dem.bands])) {
+        return Err(CliError::Input(format!(
+            "{}: no elevation sample: every one of its {}x{} is nodata or not a number",
+            path.display(),
+            dem.width,
+            dem.height
+        )));
+    }
     for w in hitex_io::dem::elevation_warnings(&dem) {
         eprintln!("hitex: warning: {}: {w}", path.display());
     }
@@ -264,6 +273,10 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
         if !v.is_finite() {
             return Err(CliError::Input(format!("{name} must be finite")));
         }
+    }
+    // as `terrain fly` has it
+    if a.exaggeration < 0.0 {
+        return Err(CliError::Input(format!("--exaggeration {} must be finite and ≥ 0", a.exaggeration)));
     }
     if !(1.0..=89.0).contains(&a.pitch) {
         return Err(CliError::Input(format!("--pitch {} must be in 1..=89 degrees below the horizon", a.pitch)));
@@ -407,6 +420,7 @@ pub(crate) fn ground_texture(
 /// `hitex terrain spans`: per case the median time per frame, PSNR and SSIM
 /// against per-pixel trilinear, bank conflicts, and the memory of each design.
 pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
+    crate::keep_going_on_closed_stdout();
     use hitex_core::texture::span::{
         BankModel, FlightView, RgbaFrame, SpanFilter, SpanOptions, SpanScheme, memory_for_pyramid, psnr, render_spans,
         render_trilinear, ssim,
@@ -432,8 +446,11 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
     if !altitude.is_finite() || altitude <= 0.0 {
         return Err(CliError::Input(format!("--altitude {altitude} must be positive")));
     }
-    if !step.is_finite() {
-        return Err(CliError::Input(format!("--step {step} must be finite")));
+    let side = pyr.width().max(pyr.height()) as f64;
+    if !(step.is_finite() && step > 0.0 && step <= side) {
+        return Err(CliError::Input(format!(
+            "--step {step} must be in (0, {side}] texels per frame (the texture's side)"
+        )));
     }
     let _ = pyr.linear_level(0); // decode once, outside the timings
     let (w, h) = a.size;
@@ -450,7 +467,7 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
             height: h,
         })
         .collect();
-    println!(
+    say!(
         "flight over {name}: {} frames {w}x{h}, altitude {altitude:.1} texels, pitch {}°, heading {}°, FOV {}°, {} levels",
         a.frames,
         a.pitch,
@@ -469,13 +486,20 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
         pb.inc(1);
     }
     pb.suspend(|| {
-        println!(
+        say!(
             "{:<10} {:>9} {:>10} {:>8} {:>10} {:>12} {:>10} {:>8}",
-            "case", "ms/frame", "PSNR dB", "SSIM", "conflicts", "accesses", "words", "mean λ"
+            "case",
+            "ms/frame",
+            "PSNR dB",
+            "SSIM",
+            "conflicts",
+            "accesses",
+            "words",
+            "mean λ"
         )
     });
     pb.suspend(|| {
-        println!(
+        say!(
             "{:<10} {:>9.2} {:>10} {:>8} {:>10} {:>12} {:>10} {:>8}",
             "trilinear",
             crate::bench::median(&mut times),
@@ -512,7 +536,7 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
         let n = views.len() as f64;
         total_conflicts += banks.conflicts;
         pb.suspend(|| {
-            println!(
+            say!(
                 "{label:<10} {:>9.2} {:>10.2} {:>8.4} {:>10} {:>12} {:>10} {:>8.2}",
                 crate::bench::median(&mut times),
                 p / n,
@@ -524,20 +548,20 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
             )
         });
         if banks.guard_raises > 0 {
-            pb.suspend(|| println!("  ({} spans raised by the rounding guard)", banks.guard_raises));
+            pb.suspend(|| say!("  ({} spans raised by the rounding guard)", banks.guard_raises));
         }
         if filter == SpanFilter::Bilinear {
             last.extend(frame);
         }
     }
     pb.finish_and_clear();
-    println!("total bank conflicts: {total_conflicts}");
+    say!("total bank conflicts: {total_conflicts}");
     // the rule is tight: one level finer (on 3×3 banks: eq. (9) taken literally) conflicts
     for scheme in [SpanScheme::Banks3x3, SpanScheme::Banks4x4] {
         let opts = SpanOptions { scheme, filter: SpanFilter::Bilinear, wrap, level_shift: -1 };
         let mut banks = BankModel::new(scheme);
         let _ = render_spans(&pyr, &views[0], &opts, &mut banks);
-        println!(
+        say!(
             "  check, {} banks one level finer than the rule (frame 1): {} conflicts, {} of {} accesses conflicted",
             scheme.name(),
             banks.conflicts,
@@ -548,15 +572,15 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
     let m3 = memory_for_pyramid(&pyr, SpanScheme::Banks3x3);
     let m4 = memory_for_pyramid(&pyr, SpanScheme::Banks4x4);
     let mib = |b: u64| b as f64 / 1_048_576.0;
-    println!("texture memory ({} texels in {} levels, RGBA8):", pyr.texel_count(), pyr.level_count());
-    println!(
+    say!("texture memory ({} texels in {} levels, RGBA8):", pyr.texel_count(), pyr.level_count());
+    say!(
         "  conventional: {} pixel processors × full copy, {} banks: {:.2} MiB",
         m3.pixel_processors,
         m3.conventional_banks,
         mib(m3.conventional_bytes)
     );
     for (label, m) in [("span 3x3", m3), ("span 4x4", m4)] {
-        println!(
+        say!(
             "  {label}: one shared copy in {} banks: {:.2} MiB ({:.4} of conventional; {:.4} without bank padding)",
             m.span_banks,
             mib(m.span_bytes),
@@ -585,7 +609,7 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
         }
     }
     crate::save(&hitex_render::Frame { width: w * 4, height: h, rgba: out }, &a.output)?;
-    println!("wrote {} (trilinear | span 3x3 | span 4x4 | |trilinear − span 3x3| × 8)", a.output.display());
+    say!("wrote {} (trilinear | span 3x3 | span 4x4 | |trilinear − span 3x3| × 8)", a.output.display());
     Ok(())
 }
 

@@ -174,6 +174,25 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
         (None, None) => return Err(CliError::Input("give --image IMAGE.tif or --procedural WIDTHxHEIGHT".into())),
     };
     check_build_size(&a, &meta, source.as_ref())?;
+    // a store of another source is not overwritten map by map (the shards of
+    // one build share theirs); a DEM left by an earlier build goes
+    if let Ok(old) = hitex_io::gst::open_store(&a.output)
+        && (old.width, old.height, &old.source) != (meta.width, meta.height, &meta.source)
+    {
+        return Err(CliError::Input(format!(
+            "{} holds a store of another source ({}, {}x{}): build into an empty folder, or remove it first",
+            a.output.display(),
+            old.source,
+            old.width,
+            old.height
+        )));
+    }
+    if a.dem.is_none()
+        && let Some(old) = stored_dem(&a.output)
+    {
+        std::fs::remove_file(&old).map_err(|e| CliError::Input(format!("{}: {e}", old.display())))?;
+        println!("removed {} (an earlier build's DEM; this build has none)", old.display());
+    }
     let pb = ProgressBar::new(meta.total_tiles());
     pb.set_style(
         ProgressStyle::with_template("{prefix:>8} [{bar:30}] {pos}/{len} maps {elapsed} (eta {eta})")
@@ -315,20 +334,25 @@ pub struct Relief {
     pub path: PathBuf,
 }
 
+/// The DEM a store holds beside its maps (`dem.*`), if any.
+fn stored_dem(store: &Path) -> Option<PathBuf> {
+    let entries = std::fs::read_dir(store).ok()?;
+    let mut found: Vec<PathBuf> = entries
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.file_stem().is_some_and(|s| s == "dem") && p.is_file())
+        .collect();
+    found.sort();
+    found.into_iter().next()
+}
+
 /// Direction towards the sun (south-east, 50° up).
 const SUN: [f32; 3] = [0.49, 0.49, 0.72];
 
 impl Relief {
     /// The DEM stored beside the maps (`dem.*`, copied in by `terrain build --dem`), if any.
     pub fn open(store: &Path, meta: &StoreMeta, exaggeration: f64) -> Result<Option<Self>, CliError> {
-        let Ok(entries) = std::fs::read_dir(store) else { return Ok(None) };
-        let mut found: Vec<PathBuf> = entries
-            .flatten()
-            .map(|e| e.path())
-            .filter(|p| p.file_stem().is_some_and(|s| s == "dem") && p.is_file())
-            .collect();
-        found.sort();
-        let Some(path) = found.into_iter().next() else { return Ok(None) };
+        let Some(path) = stored_dem(store) else { return Ok(None) };
         if !(exaggeration.is_finite() && exaggeration >= 0.0) {
             return Err(CliError::Input(format!("--exaggeration {exaggeration} must be finite and ≥ 0")));
         }
@@ -528,6 +552,7 @@ pub fn frame_setup(
 
 /// `hitex terrain fly`.
 pub fn fly(a: FlyArgs) -> Result<(), CliError> {
+    crate::keep_going_on_closed_stdout();
     if a.frames == 0 || a.frames > 100_000 {
         return Err(CliError::Input(format!("--frames {} must be in 1..=100000", a.frames)));
     }
@@ -594,7 +619,7 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
     let (t0, t1) = (keys[0].t, keys[keys.len() - 1].t);
     let mut times = Vec::new();
     let mut peak = (0usize, 0usize);
-    println!(
+    say!(
         "flying over {} ({} levels, {}x{} texels, {}) at {w}x{h}, {}, budget {} maps, {}:",
         a.store.display(),
         meta.levels,
@@ -608,9 +633,18 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
         a.budget,
         renderer.name()
     );
-    println!(
+    say!(
         "{:>6} {:>9} {:>7} {:>9} {:>9} {:>8} {:>7} {:>10} {:>10} {:>10}",
-        "frame", "ms", "needed", "resident", "requested", "missing", "failed", "memory", "triangles", "conflicts"
+        "frame",
+        "ms",
+        "needed",
+        "resident",
+        "requested",
+        "missing",
+        "failed",
+        "memory",
+        "triangles",
+        "conflicts"
     );
     let mut conflicts = (0u64, 0u64);
     for f in 0..a.frames.max(1) {
@@ -648,7 +682,7 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
         if let Some(b) = &banks {
             conflicts = (conflicts.0 + b.conflicts, conflicts.1 + b.accesses);
         }
-        println!(
+        say!(
             "{f:>6} {ms:>9.1} {:>7} {:>9} {:>9} {:>8} {:>7} {:>6.1} MiB {:>10} {:>10}",
             stats.needed,
             stats.resident,
@@ -662,20 +696,15 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
     }
     if sampler != FlySampler::Trilinear {
         if conflicts.1 > 0 {
-            println!(
-                "bank conflicts: {} in {} span accesses ({} banks)",
-                conflicts.0,
-                conflicts.1,
-                sampler.banks().pow(2)
-            );
+            say!("bank conflicts: {} in {} span accesses ({} banks)", conflicts.0, conflicts.1, sampler.banks().pow(2));
         } else if !a.stats {
-            println!("bank conflicts: not recorded (--stats records them on the CPU backend)");
+            say!("bank conflicts: not recorded (--stats records them on the CPU backend)");
         } else {
-            println!("bank conflicts: not modelled on {} (the CPU backend records them)", renderer.name());
+            say!("bank conflicts: not modelled on {} (the CPU backend records them)", renderer.name());
         }
     }
     let med = crate::bench::median(&mut times);
-    println!(
+    say!(
         "median {med:.1} ms per frame ({}); at most {} resident maps ({:.1} MiB), budget {}; frames in {}",
         renderer.name(),
         peak.0,

@@ -101,6 +101,11 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
     v.push(c("SRTM .hgt", "size is no SRTM grid", &["terrain", "render", "--dem", &f, "-o", &out]));
     let f = w("bad.asc", b"ncols 3\nnrows two\n");
     v.push(c("ESRI ASCII grid", "header value not a number", &["terrain", "render", "--dem", &f, "-o", &out]));
+    let f = w(
+        "nodata.asc",
+        b"ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 30\nNODATA_value -9999\n-9999 -9999\n-9999 -9999\n",
+    );
+    v.push(c("ESRI ASCII grid", "every sample nodata", &["terrain", "render", "--dem", &f, "-o", &out]));
     let f = w("bad.npy", b"\x93NUMPY\x01\x00\x10\x00{'descr': '<f4',");
     v.push(c("numpy .npy", "header cut short", &["terrain", "render", "--dem", &f, "-o", &out]));
     v.push(c(

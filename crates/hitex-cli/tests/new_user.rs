@@ -337,3 +337,72 @@ fn pitch_is_below_the_horizon_everywhere() {
     assert_eq!(o.status.code(), Some(2));
     assert!(error_lines(&o).join("\n").contains("below the horizon"));
 }
+
+#[test]
+fn second_pass_defects_stay_fixed() {
+    let d = tmp("second-pass");
+    let p = |n: &str| d.join(n).to_str().unwrap().to_string();
+    // a truncated IGES: the lost entities are said by every command, not only `info`
+    let text = std::fs::read_to_string(teapot()).unwrap();
+    let cut: String = text.lines().take(300).map(|l| format!("{l}\n")).collect();
+    std::fs::write(d.join("cut.igs"), cut).unwrap();
+    for args in [
+        vec!["nurbs", "render", &p("cut.igs")[..], "--size", "32x24", "--backend", "cpu", "-o", &p("c.png")[..]],
+        vec!["nurbs", "export", &p("cut.igs")[..], "-o", &p("c.json")[..]],
+    ] {
+        let o = hitex(&args);
+        assert!(o.status.success(), "{args:?}");
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(e.contains("warning") && e.contains("truncated"), "{args:?}: {e}");
+    }
+    // values that made empty or meaningless pictures are refused, naming the flag
+    let dem = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/jacksboro_fault_dem.npz");
+    std::fs::write(d.join("nd.asc"), "ncols 3\nnrows 3\nxllcorner 0\nyllcorner 0\ncellsize 30\nNODATA_value -9999\n-9999 -9999 -9999\n-9999 -9999 -9999\n-9999 -9999 -9999\n").unwrap();
+    for (args, flag) in [
+        (vec!["nurbs", "render", "teapot", "--density", "0", "-o", &p("x.png")[..]], "--density"),
+        (vec!["nurbs", "render", "teapot", "--stripes", "0", "-o", &p("x.png")[..]], "--stripes"),
+        (vec!["terrain", "render", "--dem", dem, "--exaggeration=-3", "-o", &p("x.png")[..]], "--exaggeration"),
+        (vec!["terrain", "render", "--dem", &p("nd.asc")[..], "-o", &p("x.png")[..]], "no elevation sample"),
+        (vec!["terrain", "spans", "--step", "0", "-o", &p("x.png")[..]], "--step"),
+        (vec!["btf", "synth", "knit", "--supersample", "0", "-o", &p("k.hbtf")[..]], "--supersample"),
+        (vec!["btf", "synth", "knit", "-o", &p("k.png")[..]], ".hbtf"),
+    ] {
+        let o = hitex(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        let e = error_lines(&o).join("\n");
+        assert!(e.contains(flag) && !e.contains("--bands"), "{args:?}: {e}");
+    }
+    // a store is not rebuilt from another source over the old one; an old DEM goes
+    let st = p("store");
+    let olinda = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/olinda");
+    let image = format!("{olinda}/L7_ETMs.tif");
+    let odem = format!("{olinda}/olinda_dem_utm25s.tif");
+    if std::path::Path::new(&image).exists() {
+        let o = hitex(&["terrain", "build", "--image", &image, "--dem", &odem, "-o", &st]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let o = hitex(&["terrain", "build", "--procedural", "512x512", "-o", &st]);
+        assert_eq!(o.status.code(), Some(2));
+        assert!(error_lines(&o).join("\n").contains("another source"));
+        let o = hitex(&["terrain", "build", "--image", &image, "-o", &st]);
+        assert!(o.status.success());
+        assert!(String::from_utf8_lossy(&o.stdout).contains("removed"), "{}", String::from_utf8_lossy(&o.stdout));
+        assert!(!d.join("store/dem.tif").exists());
+    } else {
+        panic!("the in-repo Olinda fixture is missing: {image}");
+    }
+    // `| head -1` does not stop a command whose product is files
+    let fly_out = d.join("frames");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_hitex"))
+        .args(["terrain", "fly", &st, "--frames", "3", "--size", "48x32", "--backend", "cpu", "-o"])
+        .arg(&fly_out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("hitex runs");
+    drop(child.stdout.take());
+    let status = child.wait().expect("hitex ends");
+    assert!(status.success(), "{status:?}");
+    for f in 0..3 {
+        assert!(fly_out.join(format!("frame-{f:04}.png")).exists(), "frame {f} missing");
+    }
+}

@@ -186,6 +186,14 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
             records.len(),
             dirs.len().min(records.len())
         ));
+        if records.len() < dirs.len() {
+            // entities lost: said wherever the model is used, not only by `info`
+            model.warnings.push(format!(
+                "the file looks truncated: {} of its {} directory entries have no parameter record and are lost",
+                dirs.len() - records.len(),
+                dirs.len()
+            ));
+        }
     }
     if let Some(t) = terminate {
         let count = |tag: char| -> Option<usize> {
