@@ -23,8 +23,8 @@ pub enum BtfCommand {
         /// Output `.hbtf`.
         #[arg(short, long)]
         output: PathBuf,
-        /// Sample side in texels (the paper's is 32).
-        #[arg(long, default_value_t = 32)]
+        /// Sample side in texels (the paper's is 32); `N` or `NxN`.
+        #[arg(long, default_value_t = 32, value_parser = parse_side)]
         size: u32,
         /// Polar angles in degrees, comma-separated (default: 0,10,…,70).
         #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
@@ -36,17 +36,17 @@ pub enum BtfCommand {
         #[arg(long, default_value_t = 2)]
         supersample: u32,
     },
-    /// Describe a `.hbtf` file: grid, sample, sizes of every layout.
+    /// Describe a `.hbtf` file (or a material, synthesised): grid, sample, sizes of every layout.
     Info {
-        /// Input `.hbtf`.
-        input: PathBuf,
+        /// Input `.hbtf`, or a material name.
+        input: String,
     },
     /// Grow a seamless, tileable index map from the BTF's sample.
     Index {
         /// Input `.hbtf` (or a material name, synthesised on the fly).
         input: String,
-        /// Index map side in texels.
-        #[arg(long, default_value_t = 128)]
+        /// Index map side in texels; `N` or `NxN`.
+        #[arg(long, default_value_t = 128, value_parser = parse_side)]
         size: u32,
         /// Output index map (16-bit PNG: red = sample column, green = sample row).
         #[arg(short, long)]
@@ -297,6 +297,21 @@ fn parse_layout(s: &str) -> Result<Layout, CliError> {
     Layout::parse(s).ok_or_else(|| CliError::Input(format!("unknown layout '{s}': use a, b, c, c2, d, e, e2 or f")))
 }
 
+/// A square side: `N`, or `NxN` as the renders' `--size WxH` (sides must match).
+fn parse_side(s: &str) -> Result<u32, String> {
+    let one = |t: &str| t.trim().parse::<u32>().map_err(|_| format!("'{t}' is not a whole number of texels"));
+    match s.split_once(['x', 'X']) {
+        Some((a, b)) => {
+            let (a, b) = (one(a)?, one(b)?);
+            if a != b {
+                return Err(format!("{s}: the sample and index maps are square: give one side, e.g. {a}"));
+            }
+            Ok(a)
+        }
+        None => one(s),
+    }
+}
+
 /// Runs a `hitex btf` subcommand.
 pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
     match cmd {
@@ -305,6 +320,12 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 let names: Vec<_> = Material::ALL.iter().map(|m| m.name()).collect();
                 CliError::Input(format!("unknown material '{material}': use one of {}", names.join(", ")))
             })?;
+            if !(1..=1024).contains(&size) {
+                return Err(CliError::Input(format!("--size {size} must be in 1..=1024 texels")));
+            }
+            if !(1..=256).contains(&phi) {
+                return Err(CliError::Input(format!("--phi {phi} must be in 1..=256 azimuths")));
+            }
             if !(1..=16).contains(&supersample) {
                 return Err(CliError::Input(format!(
                     "--supersample {supersample} must be in 1..=16 rays per texel side"
@@ -334,9 +355,9 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             Ok(())
         }
         BtfCommand::Info { input } => {
-            let btf = hitex_io::btf_file::read_hbtf(&input)?;
+            let btf = load_or_synth(&input, true)?;
             let g = btf.grid();
-            println!("{}", input.display());
+            println!("{input}");
             println!("  sample: {}x{} texels", btf.width(), btf.height());
             println!(
                 "  grid: θ = {:?}° ({}), φ: {} × {:.2}°; {} view × {} light directions, {} images",
@@ -375,6 +396,9 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
         }
         BtfCommand::Index { input, size, output, seed, passes } => {
             crate::image_out(&output)?;
+            if !(1..=8192).contains(&size) {
+                return Err(CliError::Input(format!("--size {size} must be in 1..=8192 texels")));
+            }
             let btf = load_or_synth(&input, false)?;
             let t = Instant::now();
             let map = index_with_progress(&btf, size, seed, passes, false)?;
@@ -421,7 +445,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 btf.height(),
                 btf.grid().theta_count(),
                 btf.grid().phi_count(),
-                if report.resampled { format!("; resampled: {}", report.method) } else { String::new() }
+                if report.resampled { format!("; {}", report.method) } else { String::new() }
             );
             for (what, list) in
                 [("missing", &report.missing), ("duplicated", &report.duplicated), ("ignored", &report.ignored)]
@@ -439,7 +463,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             Ok(())
         }
         BtfCommand::Export { input, output, convention } => {
-            let btf = hitex_io::btf_file::read_hbtf(&input)?;
+            let btf = load_or_synth(&input.to_string_lossy(), false)?;
             let conv = match convention {
                 ConventionArg::Ubo => hitex_io::btf_images::Convention::Ubo,
                 ConventionArg::Utia => hitex_io::btf_images::Convention::Utia,

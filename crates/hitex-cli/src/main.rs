@@ -445,6 +445,11 @@ fn run(cli: Cli) -> Result<(), CliError> {
     }
 }
 
+/// `1 patch`, `2 patches`: a count with its noun.
+pub(crate) fn count(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
 /// Lets a command that writes files run to its end when stdout is closed
 /// early: SIGPIPE is ignored (its lines go through [`say!`], which drops
 /// what cannot be written).

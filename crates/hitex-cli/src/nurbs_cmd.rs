@@ -226,11 +226,11 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             mode_legend(&mut f, &p, a.range.is_some());
             save(&f, &a.output)?;
             println!(
-                "wrote {} ({}x{}, {} patches, mode {}, {}) in {ms:.1} ms",
+                "wrote {} ({}x{}, {}, mode {}, {}) in {ms:.1} ms",
                 a.output.display(),
                 a.size.0,
                 a.size.1,
-                p.patch_count(),
+                crate::count(p.patch_count(), "patch", "patches"),
                 p.mode.name(),
                 r.name()
             );
@@ -275,7 +275,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 }
             }
             let trimmed = m.surfaces.iter().filter(|s| !s.trim.is_empty()).count();
-            println!("{}: {} patches, {trimmed} trimmed", m.name, m.surfaces.len());
+            println!("{}: {}, {trimmed} trimmed", m.name, crate::count(m.surfaces.len(), "patch", "patches"));
             let d: Vec<String> = degrees.iter().map(|((p, q), c)| format!("{p}×{q}: {c}")).collect();
             println!("degrees: {}", d.join(", "));
             println!("bounds of the control nets: min {lo:?} max {hi:?}");
@@ -331,13 +331,17 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 }
             };
             hitex_io::write_atomic(&output, text.as_bytes())?;
-            println!("wrote {} ({} patches)", output.display(), m.surfaces.len());
+            println!("wrote {} ({})", output.display(), crate::count(m.surfaces.len(), "patch", "patches"));
             Ok(())
         }
         NurbsCommand::Eval { model, patch, uv, json } => {
             let m = load_model(&model)?;
             let s = m.surfaces.get(patch).ok_or_else(|| {
-                CliError::Input(format!("{}: patch {patch} does not exist ({} patches)", m.name, m.surfaces.len()))
+                CliError::Input(format!(
+                    "{}: patch {patch} does not exist ({})",
+                    m.name,
+                    crate::count(m.surfaces.len(), "patch", "patches")
+                ))
             })?;
             let ((u0, u1), (v0, v1)) = s.surface.domain();
             if uv.0 < u0 || uv.0 > u1 || uv.1 < v0 || uv.1 > v1 {

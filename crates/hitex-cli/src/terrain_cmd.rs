@@ -100,9 +100,10 @@ pub struct RenderArgs {
     /// Vertical exaggeration.
     #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
     pub exaggeration: f32,
-    /// Camera height above the mean terrain, metres.
-    #[arg(long, default_value_t = 6000.0, allow_negative_numbers = true)]
-    pub altitude: f32,
+    /// Camera height above the mean terrain, metres (default: 0.6 × the DEM's longer side, so
+    /// that the whole model is in view).
+    #[arg(long, allow_negative_numbers = true)]
+    pub altitude: Option<f32>,
     /// Camera pitch below the horizon, degrees.
     #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
     pub pitch: f32,
@@ -267,9 +268,12 @@ pub(crate) fn load_dem(path: &std::path::Path) -> Result<hitex_io::geotiff::GeoR
 }
 
 fn render(a: RenderArgs) -> Result<(), CliError> {
-    for (name, v) in
-        [("--exaggeration", a.exaggeration), ("--altitude", a.altitude), ("--pitch", a.pitch), ("--heading", a.heading)]
-    {
+    for (name, v) in [
+        ("--exaggeration", a.exaggeration),
+        ("--altitude", a.altitude.unwrap_or(1.0)),
+        ("--pitch", a.pitch),
+        ("--heading", a.heading),
+    ] {
         if !v.is_finite() {
             return Err(CliError::Input(format!("{name} must be finite")));
         }
@@ -281,8 +285,10 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     if !(1.0..=89.0).contains(&a.pitch) {
         return Err(CliError::Input(format!("--pitch {} must be in 1..=89 degrees below the horizon", a.pitch)));
     }
-    if a.altitude <= 0.0 {
-        return Err(CliError::Input(format!("--altitude {} must be positive", a.altitude)));
+    if let Some(alt) = a.altitude
+        && alt <= 0.0
+    {
+        return Err(CliError::Input(format!("--altitude {alt} must be positive")));
     }
     crate::image_out(&a.output)?;
     let bands = parse_band_list(&a.bands)?;
@@ -326,7 +332,10 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     let target = Vec3::new(0.0, mean as f32 * a.exaggeration, 0.0);
     let (p, h) = (a.pitch.to_radians(), a.heading.to_radians());
     let dir = Vec3::new(h.sin() * p.cos(), -p.sin(), -h.cos() * p.cos());
-    let dist = a.altitude / p.sin();
+    let altitude = a.altitude.unwrap_or_else(|| {
+        0.6 * (spacing[0] * dem.width as f32).abs().max((spacing[1] * dem.height as f32).abs()).max(1.0)
+    });
+    let dist = altitude / p.sin();
     let camera = Camera::new(target - dir * dist, target, Vec3::Y, 45.0, (dist * 0.01).max(1.0), dist * 40.0)
         .map_err(|e| CliError::Input(e.to_string()))?;
     let material = Material {
@@ -357,6 +366,18 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     let t = Instant::now();
     let mut f = r.render(&prepared, &prepared.camera, a.size.0, a.size.1)?;
     let ms = t.elapsed().as_secs_f64() * 1e3;
+    // a terrain that covers (almost) nothing is said, not left as a sky picture
+    let e = hitex_core::texture::linear_to_srgb_u8;
+    let bg = [e(0.45), e(0.6), e(0.85)];
+    let covered = f.rgba.chunks_exact(4).filter(|p| p[..3] != bg).count();
+    if covered * 1000 < f.rgba.len() / 4 {
+        eprintln!(
+            "hitex: warning: the terrain covers {covered} of {} pixels: it is out of view at altitude {altitude} m, pitch {}°, heading {}°",
+            f.rgba.len() / 4,
+            a.pitch,
+            a.heading
+        );
+    }
     if a.levels {
         hitex_render::legend::level_legend(&mut f, scene.textures[0].level_count());
     }
@@ -468,8 +489,8 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
         })
         .collect();
     say!(
-        "flight over {name}: {} frames {w}x{h}, altitude {altitude:.1} texels, pitch {}°, heading {}°, FOV {}°, {} levels",
-        a.frames,
+        "flight over {name}: {} {w}x{h}, altitude {altitude:.1} texels, pitch {}°, heading {}°, FOV {}°, {} levels",
+        crate::count(a.frames as usize, "frame", "frames"),
         a.pitch,
         a.heading,
         a.fov,
@@ -621,6 +642,21 @@ pub fn run(cmd: TerrainCommand) -> Result<(), CliError> {
         TerrainCommand::Fly(a) => crate::terrain_store_cmd::fly(a),
         TerrainCommand::Spans(a) => spans(a),
         TerrainCommand::ActiveArea { fov, width, map, levels } => {
+            // the flags by name, before the library's own check
+            if !(fov.is_finite() && fov > 0.0 && fov < 180.0) {
+                return Err(CliError::Input(format!("--fov {fov} must be in (0, 180) degrees")));
+            }
+            for (flag, v) in [("--width", width), ("--map", map)] {
+                if v == 0 {
+                    return Err(CliError::Input(format!(
+                        "{flag} 0: give at least 1 {}",
+                        if flag == "--map" { "texel" } else { "pixel" }
+                    )));
+                }
+            }
+            if !(1..=32).contains(&levels) {
+                return Err(CliError::Input(format!("--levels {levels} must be in 1..=32")));
+            }
             let a = hitex_core::terrain::active_area(fov, width, map, levels)
                 .map_err(|e| CliError::Input(e.to_string()))?;
             println!("active area for FOV {fov}°, {width} px per scanline, {map}×{map}-texel maps (eq. (7)):");

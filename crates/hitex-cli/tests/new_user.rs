@@ -406,3 +406,59 @@ fn second_pass_defects_stay_fixed() {
         assert!(fly_out.join(format!("frame-{f:04}.png")).exists(), "frame {f} missing");
     }
 }
+
+#[test]
+fn flags_are_named_and_material_names_work_everywhere() {
+    let d = tmp("flags");
+    let p = |n: &str| d.join(n).to_str().unwrap().to_string();
+    for (args, flag) in [
+        (vec!["terrain", "active-area", "--width", "0"], "--width"),
+        (vec!["terrain", "active-area", "--fov", "0"], "--fov"),
+        (vec!["terrain", "active-area", "--levels", "40"], "--levels"),
+        (vec!["btf", "synth", "knit", "--size", "0", "-o", &p("k.hbtf")[..]], "--size"),
+        (vec!["btf", "synth", "knit", "--phi", "0", "-o", &p("k.hbtf")[..]], "--phi"),
+        (vec!["btf", "index", "knit", "--size", "0", "-o", &p("i.png")[..]], "--size"),
+    ] {
+        let o = hitex(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        let e = error_lines(&o).join("\n");
+        assert!(e.contains(flag), "{args:?}: {e}");
+    }
+    // a material name where a file is taken; a square side as WxH
+    let o = hitex(&["btf", "info", "leather"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = hitex(&["btf", "index", "knit", "--size", "16x16", "-o", &p("i.png")]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = hitex(&["btf", "index", "knit", "--size", "16x8", "-o", &p("i.png")]);
+    assert_eq!(o.status.code(), Some(2));
+    // a small DEM is framed by default; a terrain out of view is said
+    std::fs::write(
+        d.join("t4.asc"),
+        "ncols 4\nnrows 4\nxllcorner 0\nyllcorner 0\ncellsize 30\n1 2 3 4\n2 3 4 5\n3 4 5 6\n4 5 6 7\n",
+    )
+    .unwrap();
+    let out = d.join("t4.png");
+    let o =
+        hitex(&["terrain", "render", "--dem", &p("t4.asc"), "--size", "64x48", "--backend", "cpu", "-o", &p("t4.png")]);
+    assert!(o.status.success());
+    let (img, px) = model_pixels(&out);
+    let sky = img.get_pixel(0, 0).0;
+    let ground = img.pixels().filter(|q| q.0 != sky).count();
+    assert!(ground * 4 > px.len().max(1) && ground > 64 * 48 / 4, "the DEM covers {ground} pixels");
+    let o = hitex(&[
+        "terrain",
+        "render",
+        "--dem",
+        &p("t4.asc"),
+        "--altitude",
+        "1e9",
+        "--size",
+        "64x48",
+        "--backend",
+        "cpu",
+        "-o",
+        &p("far.png"),
+    ]);
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("out of view"));
+}
