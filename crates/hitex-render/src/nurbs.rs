@@ -397,6 +397,13 @@ pub struct PreparedNurbs {
     pub light: Option<Vec3>,
     /// Bounding sphere of the tessellation: centre, radius.
     pub bounds: (Vec3, f32),
+    /// Largest distance between the exact surface and its tessellation,
+    /// estimated at every cell's centre (model units).
+    pub tess_deviation: f32,
+    /// Let the CPU backend skip fragments that lie behind the depth already
+    /// drawn by more than the tessellation's deviation allows (a conservative
+    /// early depth test; the image is the same).
+    pub early_depth: bool,
     id: u64,
 }
 
@@ -416,6 +423,7 @@ impl PreparedNurbs {
         let mut indices = Vec::new();
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         let mut sides: Vec<(usize, usize, u32, Vec<[f64; 3]>)> = Vec::new();
+        let mut deviation = 0.0f32;
         for (k, s) in surfaces.iter().enumerate() {
             let ((u0, u1), (v0, v1)) = ranges.get(k).copied().unwrap_or_else(|| s.domain());
             let density = densities.get(k).copied().unwrap_or(8).clamp(1, 256);
@@ -447,6 +455,19 @@ impl PreparedNurbs {
                 for i in 0..density {
                     let a = base + j * row + i;
                     indices.extend_from_slice(&[a, a + 1, a + row, a + 1, a + row + 1, a + row]);
+                    // the deviation at the cell's centre from its corners' mean
+                    let (uc, vc) =
+                        (0.5 * (us[i as usize] + us[i as usize + 1]), 0.5 * (vs[j as usize] + vs[j as usize + 1]));
+                    let exact = s.point(uc, vc);
+                    let corners = [a, a + 1, a + row, a + row + 1].map(|c| vertices[c as usize].position);
+                    let d = (0..3)
+                        .map(|t| exact[t] as f32 - corners.iter().map(|c| c[t]).sum::<f32>() / 4.0)
+                        .map(|x| x * x)
+                        .sum::<f32>()
+                        .sqrt();
+                    if d.is_finite() {
+                        deviation = deviation.max(d);
+                    }
                 }
             }
             // the boundary polylines, for the fans below
@@ -581,6 +602,8 @@ impl PreparedNurbs {
             boundaries: false,
             light: None,
             bounds: (center, radius),
+            tess_deviation: deviation,
+            early_depth: true,
             id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
     }
@@ -661,6 +684,14 @@ impl PreparedNurbs {
         let toward = (a * az.sin() - b * az.cos()) * el.cos() + u * el.sin();
         let points: Vec<Vec3> = self.vertices.iter().map(|v| Vec3::from_array(v.position)).collect();
         Camera::framing(&points, toward, u, self.camera.fov_y_deg, aspect, window).unwrap_or(self.camera)
+    }
+
+    /// The margin of the conservative early depth test: how much nearer
+    /// than its triangle a fragment's exact point may lie — the
+    /// tessellation's deviation, with half as much again for the estimate
+    /// (taken at cell centres) and a hair of the model's size.
+    pub fn early_depth_margin(&self) -> f32 {
+        1.5 * self.tess_deviation + 1e-5 * self.bounds.1
     }
 
     /// Trims patches by loops in their parameter space (see [`PackedNurbs::set_trims`]).

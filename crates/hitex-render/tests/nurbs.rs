@@ -377,3 +377,45 @@ fn every_frame_size_renders() {
         }
     }
 }
+
+#[test]
+fn the_conservative_early_depth_changes_no_pixel() {
+    // fragments behind the depth already drawn by more than the
+    // tessellation's deviation allows are skipped; every image stays the same
+    // bit for bit
+    let cpu = CpuRenderer::new();
+    let holed = {
+        let m = hitex_io::models::load_model(concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/holed-square.igs"))
+            .unwrap();
+        let mut p = PreparedNurbs::new(m.nurbs(), &m.ranges(), 8);
+        let trims: Vec<_> = m.surfaces.iter().map(|s| s.trim.clone()).collect();
+        p.set_trims(&trims);
+        p
+    };
+    let mut models = vec![holed];
+    for (name, density) in [("teapot", 8), ("spray", 4), ("surface", 8), ("teapot", 2)] {
+        let m = hitex_io::models::load_model(name).unwrap();
+        models.push(PreparedNurbs::new(m.nurbs(), &m.ranges(), density));
+    }
+    assert!(models[1].tess_deviation > 0.0, "the teapot's tessellation departs from it");
+    for mut p in models {
+        for mode in [NurbsMode::Shaded, NurbsMode::Isophote, NurbsMode::Mean] {
+            p.mode = mode;
+            for turn in [0.0f32, 1.1, 2.3, 3.9, 5.2] {
+                let cam = p.camera.orbit(turn);
+                p.early_depth = true;
+                let with = cpu.render_nurbs(&p, &cam, 200, 150).unwrap();
+                p.early_depth = false;
+                let without = cpu.render_nurbs(&p, &cam, 200, 150).unwrap();
+                let differ =
+                    with.rgba.chunks_exact(4).zip(without.rgba.chunks_exact(4)).filter(|(a, b)| a != b).count();
+                assert_eq!(
+                    differ,
+                    0,
+                    "{} patches, mode {mode:?}, turn {turn}: {differ} pixels differ",
+                    p.patch_count()
+                );
+            }
+        }
+    }
+}

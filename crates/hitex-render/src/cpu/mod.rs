@@ -62,7 +62,13 @@ impl CpuRenderer {
         let positions: Vec<glam::Vec3> = scene.vertices.iter().map(|v| glam::Vec3::from_array(v.position)).collect();
         let draws = [crate::prepare::Draw { first_index: 0, index_count: scene.indices.len() as u32, material: 0 }];
         let view_proj = glam::Mat4::from_cols_array_2d(&frame.view_proj);
-        raster::rasterize(target, view_proj, &positions, &varyings, &scene.indices, &draws, &program);
+        // fragments too far behind what is drawn already are not evaluated
+        let early = scene.early_depth.then_some(raster::EarlyDepth {
+            margin: scene.early_depth_margin(),
+            near: camera.near,
+            far: camera.far,
+        });
+        raster::rasterize_early(target, view_proj, &positions, &varyings, &scene.indices, &draws, &program, early);
     }
 }
 

@@ -203,6 +203,23 @@ fn clip_polygon(poly: &mut Vec<ClipVert>, scratch: &mut Vec<ClipVert>) {
     }
 }
 
+/// A conservative early depth test for programs that write their own depth
+/// (which otherwise cannot test before shading): a fragment whose
+/// interpolated eye distance lies more than `margin` behind the depth
+/// already in the buffer at its pixel is not shaded, since its program's
+/// depth could not pass the late test. `margin` must bound how much nearer
+/// than its triangle a program's depth may put a fragment (for exact
+/// surfaces: the tessellation's deviation); the image does not change.
+#[derive(Debug, Clone, Copy)]
+pub struct EarlyDepth {
+    /// Eye-distance margin, world units.
+    pub margin: f32,
+    /// The projection's near plane (to turn depth into distance).
+    pub near: f32,
+    /// The projection's far plane.
+    pub far: f32,
+}
+
 /// Rasterizes indexed triangles into `target`, drawing `draws` in order.
 /// `positions` are world positions; `varyings` the per-vertex inputs of the
 /// fragment program.
@@ -215,7 +232,28 @@ pub fn rasterize<const K: usize, S: BlockShader<K>>(
     draws: &[Draw],
     shader: &S,
 ) {
+    rasterize_early(target, view_proj, positions, varyings, indices, draws, shader, None);
+}
+
+/// [`rasterize`] with a conservative early depth test ([`EarlyDepth`]) for
+/// programs that write depth.
+#[allow(clippy::too_many_arguments)]
+pub fn rasterize_early<const K: usize, S: BlockShader<K>>(
+    target: &mut Target,
+    view_proj: Mat4,
+    positions: &[Vec3],
+    varyings: &[[f32; K]],
+    indices: &[u32],
+    draws: &[Draw],
+    shader: &S,
+    early: Option<EarlyDepth>,
+) {
     let (width, height) = (target.width, target.height);
+    // depth d in [0, 1] of distance w: d = r (near / w − 1), r = far / (near − far)
+    let occ = early.filter(|_| S::WRITES_DEPTH).map(|o| {
+        let r = o.far / (o.near - o.far);
+        OccParams { margin: o.margin, near: o.near, r }
+    });
     // vertex stage
     let clip: Vec<Vec4> = positions.par_iter().map(|p| view_proj * p.extend(1.0)).collect();
 
@@ -264,10 +302,18 @@ pub fn rasterize<const K: usize, S: BlockShader<K>>(
             let rows = (color.len() / w) as u32;
             for &ti in &bins[b] {
                 let t = &tris[ti as usize];
-                simd::run(BandOp { t, shader, color: &mut *color, depth: &mut *depth, width, y_band, rows });
+                simd::run(BandOp { t, shader, color: &mut *color, depth: &mut *depth, width, y_band, rows, occ });
             }
         },
     );
+}
+
+/// The conservative early test's constants (see [`EarlyDepth`]).
+#[derive(Clone, Copy)]
+struct OccParams {
+    margin: f32,
+    near: f32,
+    r: f32,
 }
 
 fn setup<const K: usize>(
@@ -377,16 +423,19 @@ struct BandOp<'a, const K: usize, S> {
     width: u32,
     y_band: u32,
     rows: u32,
+    /// The conservative early depth test, if any.
+    occ: Option<OccParams>,
 }
 
 impl<const K: usize, S: BlockShader<K>> pulp::WithSimd for BandOp<'_, K, S> {
     type Output = ();
     #[inline(always)]
     fn with_simd<Sm: pulp::Simd>(self, _: Sm) {
-        raster_band(self.t, self.shader, self.color, self.depth, self.width, self.y_band, self.rows);
+        raster_band(self.t, self.shader, self.color, self.depth, self.width, self.y_band, self.rows, self.occ);
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn raster_band<const K: usize, S: BlockShader<K>>(
     t: &Setup<K>,
@@ -396,6 +445,7 @@ fn raster_band<const K: usize, S: BlockShader<K>>(
     width: u32,
     y_band: u32,
     rows: u32,
+    occ: Option<OccParams>,
 ) {
     let y0 = t.by0.max(y_band) & !1;
     let y1 = t.by1.min(y_band + rows);
@@ -462,7 +512,7 @@ fn raster_band<const K: usize, S: BlockShader<K>>(
                 if mask != 0 {
                     shade_block(
                         t, shader, color, depth, width, y_band, qx, qy, mask, &e_row, &offs, &mut block, &mut rgba,
-                        &mut zout,
+                        &mut zout, occ,
                     );
                 }
             }
@@ -492,6 +542,7 @@ fn shade_block<const K: usize, S: BlockShader<K>>(
     b: &mut Block<K>,
     rgba: &mut [[u8; 4]; LANES],
     zout: &mut Lanes,
+    occ: Option<OccParams>,
 ) {
     // screen-linear barycentrics λ1 = E(edge 2→0)/A, λ2 = E(edge 0→1)/A
     let mut l1 = [0.0f32; LANES];
@@ -522,6 +573,25 @@ fn shade_block<const K: usize, S: BlockShader<K>>(
     for lane in 0..LANES {
         let q = t.q[0] + l1[lane] * t.q[1] + l2[lane] * t.q[2];
         b.w[lane] = 1.0 / q;
+    }
+    // conservative early depth: lanes more than the margin behind what the
+    // buffer already holds cannot pass the late test
+    if let Some(p) = occ {
+        for lane in 0..LANES {
+            if mask & (1 << lane) != 0 {
+                let d = depth[index(lane)];
+                // nothing drawn yet: depth 1 (the far plane)
+                if d < 1.0 {
+                    let dist = p.near / (d / p.r + 1.0);
+                    if b.w[lane] - p.margin > dist {
+                        mask &= !(1 << lane);
+                    }
+                }
+            }
+        }
+        if mask == 0 {
+            return;
+        }
     }
     for j in 0..K {
         let (a0, a1, a2) = (t.va[0][j], t.va[1][j], t.va[2][j]);
