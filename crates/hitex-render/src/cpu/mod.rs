@@ -62,13 +62,31 @@ impl CpuRenderer {
         let positions: Vec<glam::Vec3> = scene.vertices.iter().map(|v| glam::Vec3::from_array(v.position)).collect();
         let draws = [crate::prepare::Draw { first_index: 0, index_count: scene.indices.len() as u32, material: 0 }];
         let view_proj = glam::Mat4::from_cols_array_2d(&frame.view_proj);
-        // fragments too far behind what is drawn already are not evaluated
+        // fragments too far behind what is drawn already are not evaluated;
+        // triangles are submitted nearest first so that most hidden ones are
         let early = scene.early_depth.then_some(raster::EarlyDepth {
             margin: scene.early_depth_margin(),
             near: camera.near,
             far: camera.far,
         });
-        raster::rasterize_early(target, view_proj, &positions, &varyings, &scene.indices, &draws, &program, early);
+        let sorted;
+        let indices = if early.is_some() {
+            let eye = camera.position;
+            let mut tris: Vec<(f32, [u32; 3])> = scene
+                .indices
+                .chunks_exact(3)
+                .map(|t| {
+                    let c = t.iter().map(|&i| positions[i as usize]).fold(glam::Vec3::ZERO, |a, p| a + p) / 3.0;
+                    ((c - eye).length_squared(), [t[0], t[1], t[2]])
+                })
+                .collect();
+            tris.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+            sorted = tris.into_iter().flat_map(|t| t.1).collect::<Vec<u32>>();
+            &sorted
+        } else {
+            &scene.indices
+        };
+        raster::rasterize_early(target, view_proj, &positions, &varyings, indices, &draws, &program, early);
     }
 }
 
