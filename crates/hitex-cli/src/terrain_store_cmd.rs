@@ -200,9 +200,19 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
             .progress_chars("=> "),
     );
     pb.set_prefix("build");
+    // where the bar cannot show (stderr not a terminal: logs, CI), a line at
+    // every tenth of the work instead, once the build has run a second
+    let lines = !std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let decile = std::sync::atomic::AtomicU64::new(0);
     let report = build_store(source.as_ref(), &meta, &a.output, BuildOptions { shard: a.shard }, &|done, total| {
         pb.set_length(total);
         pb.set_position(done);
+        if lines && total > 0 && t.elapsed().as_secs_f64() > 1.0 {
+            let d = done * 10 / total;
+            if d > decile.fetch_max(d, std::sync::atomic::Ordering::Relaxed) {
+                eprintln!("hitex: build: {done}/{total} maps ({}%)", d * 10);
+            }
+        }
     })?;
     pb.finish_and_clear();
     if let Some(d) = &a.dem {

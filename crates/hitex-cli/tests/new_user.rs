@@ -462,3 +462,19 @@ fn flags_are_named_and_material_names_work_everywhere() {
     assert!(o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("out of view"));
 }
+
+#[test]
+fn a_long_build_reports_progress_where_no_bar_can_show() {
+    // stderr captured (not a terminal): a line at every tenth once a second has passed
+    let d = tmp("build-progress");
+    let st = d.join("store");
+    let o = hitex(&["terrain", "build", "--procedural", "8000x8000", "-o", st.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("1365/1365 maps (100%)"), "{e}");
+    // a build under a second stays quiet
+    let o = hitex(&["terrain", "build", "--procedural", "300x300", "-o", d.join("small").to_str().unwrap()]);
+    assert!(o.status.success());
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("maps ("));
+    let _ = std::fs::remove_dir_all(&d);
+}
