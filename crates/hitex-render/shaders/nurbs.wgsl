@@ -528,17 +528,24 @@ fn near_trim(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> bool {
     return false;
 }
 
+// the patch's parameter domain: (u0, u1, v0, v1)
+fn domain(pid: i32) -> vec4<f32> {
+    let head = textureLoad(control, vec2<i32>(0, pid), 0);
+    return vec4<f32>(
+        knot(0, pid, i32(head.x)),
+        knot(0, pid, i32(head.z)),
+        knot(1, pid, i32(head.y)),
+        knot(1, pid, i32(head.w)),
+    );
+}
+
 // where a fragment lies against its patch's boundary: 0 inside, 1 past it
 // within the seam reach (drawn behind any surface truly there), 2 beyond
 // (discarded)
 fn reach(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> u32 {
-    let head = textureLoad(control, vec2<i32>(0, pid), 0);
-    let u0 = knot(0, pid, i32(head.x));
-    let u1 = knot(0, pid, i32(head.z));
-    let v0 = knot(1, pid, i32(head.y));
-    let v1 = knot(1, pid, i32(head.w));
-    let ou = max(u0 - u, u - u1);
-    let ov = max(v0 - v, v - v1);
+    let d = domain(pid);
+    let ou = max(d.x - u, u - d.y);
+    let ov = max(d.z - v, v - d.w);
     if ou > SEAM_REACH * fu || ov > SEAM_REACH * fv {
         return 2u;
     }
@@ -558,13 +565,9 @@ fn reach(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> u32 {
 const SEAM_DEPTH_SCALE: f32 = 1.005;
 
 fn on_boundary(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> bool {
-    let head = textureLoad(control, vec2<i32>(0, pid), 0);
-    let u0 = knot(0, pid, i32(head.x));
-    let u1 = knot(0, pid, i32(head.z));
-    let v0 = knot(1, pid, i32(head.y));
-    let v1 = knot(1, pid, i32(head.w));
-    let du = min(u - u0, u1 - u);
-    let dv = min(v - v0, v1 - v);
+    let d = domain(pid);
+    let du = min(u - d.x, d.y - u);
+    let dv = min(v - d.z, d.w - v);
     return du < fu || dv < fv;
 }
 
