@@ -8,6 +8,7 @@
 pub mod btf;
 pub mod nurbs;
 pub mod raster;
+pub mod sampler;
 pub mod simd;
 pub mod terrain;
 pub mod textured;

@@ -192,6 +192,20 @@ pub fn run<Op: pulp::WithSimd>(op: Op) -> Op::Output {
 
 // ---- lane arithmetic: plain loops the level's code generation vectorises ----
 
+/// `[e(i) for each lane i]` as a plain loop. Lane code avoids closures and
+/// `std::array::from_fn`: a helper the compiler leaves out of line is
+/// compiled for the baseline instruction set, outside the level's code.
+macro_rules! lanes {
+    (|$i:ident| $e:expr) => {{
+        let mut o = [0.0f32; $crate::cpu::simd::LANES];
+        for $i in 0..$crate::cpu::simd::LANES {
+            o[$i] = $e;
+        }
+        o
+    }};
+}
+pub(crate) use lanes;
+
 /// `[x; 16]`
 #[inline(always)]
 pub fn splat(x: f32) -> Lanes {
@@ -270,6 +284,91 @@ impl V3 {
     }
 }
 
+/// `log2(x)` of a positive finite `x` from its exponent and a series in the
+/// mantissa (max relative error ≈ 2e-7; the same bits at every level).
+/// `x = 0` gives −∞; NaN, negative or infinite `x` give NaN or +∞ as `log2`;
+/// subnormals are read as 2⁻¹²⁶·m (the results only feed level selection and
+/// `pow` of values in [0, 1], where such inputs round to 0 anyway).
+#[inline(always)]
+pub fn log2(x: f32) -> f32 {
+    let bits = x.to_bits();
+    let mut e = ((bits >> 23) & 0xff) as i32 - 127;
+    let mut m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
+    // m in [√½, √2) so that the series argument stays small
+    let big = m > std::f32::consts::SQRT_2;
+    m = if big { m * 0.5 } else { m };
+    e += big as i32;
+    // ln m = 2 artanh s, s = (m − 1)/(m + 1), |s| ≤ 0.172
+    let s = (m - 1.0) / (m + 1.0);
+    let s2 = s * s;
+    let series = 1.0 + s2 * (1.0 / 3.0 + s2 * (1.0 / 5.0 + s2 * (1.0 / 7.0 + s2 * (1.0 / 9.0))));
+    let l = e as f32 + s * series * (2.0 * std::f32::consts::LOG2_E);
+    if x > 0.0 && x < f32::INFINITY {
+        l
+    } else if x == 0.0 {
+        f32::NEG_INFINITY
+    } else if x == f32::INFINITY {
+        x
+    } else {
+        f32::NAN
+    }
+}
+
+/// `2^y` from an integer power and a Taylor series of the fraction
+/// (max relative error ≈ 1e-8 plus rounding). `y < −126` gives 0,
+/// `y ≥ 128` +∞, NaN gives NaN.
+#[inline(always)]
+pub fn exp2(y: f32) -> f32 {
+    let yc = y.clamp(-126.0, 127.0);
+    // y = i + f with f in [−½, ½]
+    let i = crate::cpu::simd::floor(yc + 0.5);
+    let f = (yc - i) * std::f32::consts::LN_2;
+    let p = 1.0
+        + f * (1.0
+            + f * (1.0 / 2.0
+                + f * (1.0 / 6.0 + f * (1.0 / 24.0 + f * (1.0 / 120.0 + f * (1.0 / 720.0 + f * (1.0 / 5040.0)))))));
+    let r = p * f32::from_bits(((i as i32 + 127) as u32) << 23);
+    if y < -126.0 {
+        0.0
+    } else if y >= 128.0 {
+        f32::INFINITY
+    } else if y.is_nan() {
+        y
+    } else {
+        r
+    }
+}
+
+/// `x^y` for `x` in [0, ∞) and finite `y > 0`, as a GPU's `pow`: `exp2(y·log2 x)`.
+#[inline(always)]
+pub fn pow(x: f32, y: f32) -> f32 {
+    exp2(y * log2(x))
+}
+
+/// `floor`, branch-free, for lane loops (no library call at any level).
+#[inline(always)]
+pub fn floor(t: f32) -> f32 {
+    hitex_core::texture::sampler::floor(t)
+}
+
+/// Lane indices of the fine x derivative within each quad: `a[HI] − a[LO]`.
+const DX_HI: [usize; LANES] = [1, 1, 3, 3, 5, 5, 7, 7, 9, 9, 11, 11, 13, 13, 15, 15];
+const DX_LO: [usize; LANES] = [0, 0, 2, 2, 4, 4, 6, 6, 8, 8, 10, 10, 12, 12, 14, 14];
+const DY_HI: [usize; LANES] = [2, 3, 2, 3, 6, 7, 6, 7, 10, 11, 10, 11, 14, 15, 14, 15];
+const DY_LO: [usize; LANES] = [0, 1, 0, 1, 4, 5, 4, 5, 8, 9, 8, 9, 12, 13, 12, 13];
+
+/// Fine derivative along x of a block's lanes, per quad (WGSL `dpdxFine`).
+#[inline(always)]
+pub fn ddx(a: &Lanes) -> Lanes {
+    lanes!(|i| a[DX_HI[i]] - a[DX_LO[i]])
+}
+
+/// Fine derivative along y of a block's lanes, per quad (WGSL `dpdyFine`).
+#[inline(always)]
+pub fn ddy(a: &Lanes) -> Lanes {
+    lanes!(|i| a[DY_HI[i]] - a[DY_LO[i]])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -311,5 +410,51 @@ mod tests {
             }
         }
         assert_eq!(got, want);
+    }
+
+    #[test]
+    fn log2_exp2_and_pow_match_the_library() {
+        let mut worst: f32 = 0.0;
+        for k in 0..200_000 {
+            let x = 1e-30f32 * 1.0007f32.powi(k);
+            if !x.is_finite() {
+                break;
+            }
+            let (got, want) = (log2(x), x.log2());
+            worst = worst.max((got - want).abs() / want.abs().max(1.0));
+        }
+        assert!(worst < 4e-7, "log2 error {worst}");
+        assert_eq!(log2(0.0), f32::NEG_INFINITY);
+        assert_eq!(log2(f32::INFINITY), f32::INFINITY);
+        assert!(log2(-1.0).is_nan() && log2(f32::NAN).is_nan());
+        let mut worst: f32 = 0.0;
+        for k in 0..100_000 {
+            let y = -126.0 + k as f32 * 0.00253;
+            let (got, want) = (exp2(y), y.exp2());
+            worst = worst.max((got - want).abs() / want);
+        }
+        assert!(worst < 4e-7, "exp2 error {worst}");
+        assert_eq!(exp2(-200.0), 0.0);
+        assert_eq!(exp2(f32::NEG_INFINITY), 0.0);
+        assert_eq!(exp2(300.0), f32::INFINITY);
+        // specular powers of cosines, as the lighting uses them
+        for s in [1.0f32, 8.0, 32.0, 64.0, 200.0] {
+            for k in 0..=1000 {
+                let x = k as f32 / 1000.0;
+                let (got, want) = (pow(x, s), x.powf(s));
+                assert!((got - want).abs() <= 1e-5 * want + 1e-12, "{x}^{s}: {got} vs {want}");
+            }
+        }
+    }
+
+    #[test]
+    fn block_derivatives_stay_within_each_quad() {
+        // f = 3x + 5y + 100q over four quads
+        let a: Lanes = std::array::from_fn(|i| {
+            let (q, l) = (i / 4, i % 4);
+            3.0 * (l % 2) as f32 + 5.0 * (l / 2) as f32 + 100.0 * q as f32
+        });
+        assert_eq!(ddx(&a), [3.0; LANES]);
+        assert_eq!(ddy(&a), [5.0; LANES]);
     }
 }

@@ -1,13 +1,16 @@
 //! The textured-mesh fragment program. Twin of `shaders/textured.wgsl`:
 //! same inputs, same steps, same order; change both together.
 
-use super::raster::QuadShader;
+// lane loops index several arrays by the same lane, as the lane code reads
+#![allow(clippy::needless_range_loop)]
+
+use super::raster::{Block, BlockShader};
+use super::sampler::{LaneJacobian, LaneSampler};
+use super::simd::{self, LANES, Lanes, V3, ddx, ddy, lanes, map, splat, zip};
 use crate::prepare::{FrameUniform, MaterialUniform, PreparedScene, Vertex};
-use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
+use glam::{Vec3, Vec4};
 use hitex_core::scene::MAX_LIGHTS;
-use hitex_core::texture::{
-    Filter, Image, Jacobian, LevelRule, MipPyramid, SamplerOptions, Wrap, level_of_detail, sample,
-};
+use hitex_core::texture::{Filter, Image, Jacobian, LevelRule, MipPyramid, SamplerOptions, Wrap, level_of_detail};
 
 /// Varyings per vertex: world position (3), world normal (3), uv (2).
 pub const VARYINGS: usize = 8;
@@ -21,7 +24,8 @@ pub fn varyings(v: &Vertex) -> [f32; VARYINGS] {
 /// The program with its bindings.
 pub struct TexturedProgram<'a> {
     frame: &'a FrameUniform,
-    materials: Vec<(MaterialUniform, SamplerOptions, Option<&'a MipPyramid>)>,
+    #[allow(clippy::type_complexity)]
+    materials: Vec<(MaterialUniform, SamplerOptions, Option<&'a MipPyramid>, Option<LaneSampler<'a>>)>,
 }
 
 impl<'a> TexturedProgram<'a> {
@@ -31,7 +35,10 @@ impl<'a> TexturedProgram<'a> {
             .materials
             .iter()
             .zip(&scene.material_textures)
-            .map(|(m, t)| (*m, sampler_options(m), t.as_deref()))
+            .map(|(m, t)| {
+                let opts = sampler_options(m);
+                (*m, opts, t.as_deref(), t.as_deref().map(|p| LaneSampler::new(p, opts)))
+            })
             .collect();
         Self { frame, materials }
     }
@@ -104,13 +111,6 @@ fn texture_level0(t: Option<&MipPyramid>) -> Option<&Image> {
     t.map(|p| p.level(0))
 }
 
-/// Encodes a linear colour for the 8-bit target (round to nearest).
-#[inline]
-fn encode(c: Vec3) -> [u8; 4] {
-    let e = |v: f32| hitex_core::texture::linear_to_srgb_u8(v);
-    [e(c.x), e(c.y), e(c.z), 255]
-}
-
 /// Writes an already-encoded colour in [0, 1].
 #[inline]
 fn raw(c: Vec3) -> [u8; 4] {
@@ -118,175 +118,161 @@ fn raw(c: Vec3) -> [u8; 4] {
     [e(c.x), e(c.y), e(c.z), 255]
 }
 
-/// Four lanes of a scalar: one value per pixel of the quad (SSE on x86-64).
-type Lanes = Vec4;
-
-/// Fine derivative along x of four lanes (lanes 0 1 / 2 3).
-#[inline(always)]
-fn ddx(a: Lanes) -> Lanes {
-    a.yyww() - a.xxzz()
-}
-
-/// Fine derivative along y of four lanes.
-#[inline(always)]
-fn ddy(a: Lanes) -> Lanes {
-    a.zwzw() - a.xyxy()
-}
-
-/// Three lanes-vectors: a 3-vector per pixel, stored component-wise.
-#[derive(Clone, Copy)]
-struct V3 {
-    x: Lanes,
-    y: Lanes,
-    z: Lanes,
-}
-
-impl V3 {
+impl BlockShader<VARYINGS> for TexturedProgram<'_> {
     #[inline(always)]
-    fn splat(v: Vec3) -> Self {
-        Self { x: Lanes::splat(v.x), y: Lanes::splat(v.y), z: Lanes::splat(v.z) }
-    }
-    #[inline(always)]
-    fn sub(self, o: Self) -> Self {
-        Self { x: self.x - o.x, y: self.y - o.y, z: self.z - o.z }
-    }
-    #[inline(always)]
-    fn add(self, o: Self) -> Self {
-        Self { x: self.x + o.x, y: self.y + o.y, z: self.z + o.z }
-    }
-    #[inline(always)]
-    fn scale(self, s: Lanes) -> Self {
-        Self { x: self.x * s, y: self.y * s, z: self.z * s }
-    }
-    #[inline(always)]
-    fn dot(self, o: Self) -> Lanes {
-        self.x * o.x + self.y * o.y + self.z * o.z
-    }
-    /// `v / |v|`, or zero where `|v| = 0` (glam's `normalize_or_zero`).
-    #[inline(always)]
-    fn normalize_or_zero(self) -> Self {
-        let len2 = self.dot(self);
-        let rcp = Lanes::ONE / len2.sqrt();
-        let ok = rcp.is_finite_mask() & len2.cmpgt(Lanes::ZERO);
-        self.scale(Lanes::select(ok, rcp, Lanes::ZERO))
-    }
-    #[inline(always)]
-    fn lane(self, i: usize) -> Vec3 {
-        Vec3::new(self.x[i], self.y[i], self.z[i])
-    }
-}
-
-impl QuadShader<VARYINGS> for TexturedProgram<'_> {
-    fn shade(&self, material: usize, v: &[[f32; VARYINGS]; 4], w: [f32; 4], live: u8) -> [[u8; 4]; 4] {
-        let (m, opts, tex) = &self.materials[material];
+    fn shade_block(&self, b: &Block<VARYINGS>, rgba: &mut [[u8; 4]; LANES], _depth: &mut Lanes) {
+        let (m, opts, tex, sampler) = &self.materials[b.material];
         let f = self.frame;
+        let live = b.live;
         // inputs, one lane per pixel
-        let col = |j: usize| Lanes::new(v[0][j], v[1][j], v[2][j], v[3][j]);
-        let pos = V3 { x: col(0), y: col(1), z: col(2) };
-        let nrm = V3 { x: col(3), y: col(4), z: col(5) };
-        let u = col(6) * m.uv_scale[0];
-        let vv = col(7) * m.uv_scale[1];
+        let pos = V3 { x: b.v[0], y: b.v[1], z: b.v[2] };
+        let nrm = V3 { x: b.v[3], y: b.v[4], z: b.v[5] };
+        let u = map(&b.v[6], |t| t * m.uv_scale[0]);
+        let vv = map(&b.v[7], |t| t * m.uv_scale[1]);
         // analytic screen-to-texture Jacobian, eq. (1): uv = U / q with U = uv·q
         // and q = 1/w both linear in screen space, so their quad differences are
         // exact and ∂uv/∂x = (∂U/∂x − uv ∂q/∂x) / q
-        let q = Lanes::ONE / Lanes::from_array(w);
-        let (bu, bv) = (u * q, vv * q);
-        let (dq_x, dq_y) = (ddx(q), ddy(q));
-        let du_dx = (ddx(bu) - u * dq_x) / q;
-        let dv_dx = (ddx(bv) - vv * dq_x) / q;
-        let du_dy = (ddy(bu) - u * dq_y) / q;
-        let dv_dy = (ddy(bv) - vv * dq_y) / q;
-        let jac = |i: usize| Jacobian { du_dx: du_dx[i], dv_dx: dv_dx[i], du_dy: du_dy[i], dv_dy: dv_dy[i] };
-        let uv = |i: usize| Vec2::new(u[i], vv[i]);
+        let q = map(&b.w, |w| 1.0 / w);
+        let bu = zip(&u, &q, |a, q| a * q);
+        let bv = zip(&vv, &q, |a, q| a * q);
+        let (dq_x, dq_y) = (ddx(&q), ddy(&q));
+        let (dbu_x, dbu_y, dbv_x, dbv_y) = (ddx(&bu), ddy(&bu), ddx(&bv), ddy(&bv));
+        let jac = LaneJacobian {
+            du_dx: lanes!(|i| (dbu_x[i] - u[i] * dq_x[i]) / q[i]),
+            dv_dx: lanes!(|i| (dbv_x[i] - vv[i] * dq_x[i]) / q[i]),
+            du_dy: lanes!(|i| (dbu_y[i] - u[i] * dq_y[i]) / q[i]),
+            dv_dy: lanes!(|i| (dbv_y[i] - vv[i] * dq_y[i]) / q[i]),
+        };
         // two-sided normal
-        let cam = V3::splat(Vec3::new(f.camera[0], f.camera[1], f.camera[2]));
-        let view = cam.sub(pos).normalize_or_zero();
-        let n = nrm.normalize_or_zero();
+        let cam = Vec3::new(f.camera[0], f.camera[1], f.camera[2]);
+        let view = normalize_or_zero(&V3 {
+            x: map(&pos.x, |p| cam.x - p),
+            y: map(&pos.y, |p| cam.y - p),
+            z: map(&pos.z, |p| cam.z - p),
+        });
+        let n = normalize_or_zero(&nrm);
         // (one-sided materials keep the normal as authored)
-        let back = if m.one_sided == 0 { n.dot(view).cmplt(Lanes::ZERO) } else { Lanes::ZERO.cmplt(Lanes::ZERO) };
-        let sign = Lanes::select(back, Lanes::splat(-1.0), Lanes::ONE);
-        let n = n.scale(sign);
-        let mut out = [[0u8; 4]; 4];
+        let ndv = n.dot(&view);
+        let sign: Lanes = lanes!(|i| if m.one_sided == 0 && ndv[i] < 0.0 { -1.0 } else { 1.0 });
+        let n = V3 {
+            x: zip(&n.x, &sign, |a, s| a * s),
+            y: zip(&n.y, &sign, |a, s| a * s),
+            z: zip(&n.z, &sign, |a, s| a * s),
+        };
         match f.params[0] {
             // uv
             1 => {
-                for (i, o) in out.iter_mut().enumerate() {
-                    let t = uv(i);
-                    *o = raw(Vec3::new(t.x - t.x.floor(), t.y - t.y.floor(), 0.0));
+                for i in 0..LANES {
+                    rgba[i] = raw(Vec3::new(u[i] - u[i].floor(), vv[i] - vv[i].floor(), 0.0));
                 }
             }
             // level
             2 => {
-                for (i, o) in out.iter_mut().enumerate() {
+                for i in 0..LANES {
                     let lambda = match texture_level0(*tex) {
                         Some(img) if m.has_texture == 1 => {
-                            level_of_detail(opts.level_rule, jac(i), img.width(), img.height()) + opts.lod_bias
+                            let j = Jacobian {
+                                du_dx: jac.du_dx[i],
+                                dv_dx: jac.dv_dx[i],
+                                du_dy: jac.du_dy[i],
+                                dv_dy: jac.dv_dy[i],
+                            };
+                            level_of_detail(opts.level_rule, j, img.width(), img.height()) + opts.lod_bias
                         }
                         _ => f32::NEG_INFINITY,
                     };
-                    *o = raw(level_color(lambda));
+                    rgba[i] = raw(level_color(lambda));
                 }
             }
             // normal
             3 => {
-                for (i, o) in out.iter_mut().enumerate() {
-                    *o = raw(n.lane(i) * 0.5 + Vec3::splat(0.5));
+                for i in 0..LANES {
+                    rgba[i] = raw(n.lane(i) * 0.5 + Vec3::splat(0.5));
                 }
             }
             // shaded
             _ => {
                 // albedo = base colour × texel
-                let mut albedo = V3::splat(Vec4::from_array(m.base_color).truncate());
-                if let Some(t) = tex.filter(|_| m.has_texture == 1) {
-                    // helper lanes feed derivatives only: their texels are never seen
-                    let mut c = [Vec4::ONE; 4];
-                    for (i, ci) in c.iter_mut().enumerate() {
-                        if live & (1 << i) != 0 {
-                            *ci = sample(t, opts, uv(i), jac(i));
-                        }
+                let base = Vec4::from_array(m.base_color).truncate();
+                let mut albedo = [splat(base.x), splat(base.y), splat(base.z)];
+                if let Some(s) = sampler.as_ref().filter(|_| m.has_texture == 1) {
+                    // helper lanes feed derivatives only: their texels are never read
+                    let t = s.sample(&u, &vv, &jac, live);
+                    for c in 0..3 {
+                        albedo[c] = zip(&albedo[c], &t[c], |a, t| a * t);
                     }
-                    albedo.x *= Lanes::new(c[0].x, c[1].x, c[2].x, c[3].x);
-                    albedo.y *= Lanes::new(c[0].y, c[1].y, c[2].y, c[3].y);
-                    albedo.z *= Lanes::new(c[0].z, c[1].z, c[2].z, c[3].z);
                 }
-                let mut diffuse = V3::splat(Vec3::new(f.ambient[0], f.ambient[1], f.ambient[2]));
-                let mut spec = V3::splat(Vec3::ZERO);
+                let mut diffuse = [splat(f.ambient[0]), splat(f.ambient[1]), splat(f.ambient[2])];
+                let mut spec = [splat(0.0); 3];
                 let count = (f.params[1] as usize).min(MAX_LIGHTS);
                 for l in &f.lights[..count] {
                     let lv = Vec3::new(l.vector[0], l.vector[1], l.vector[2]);
-                    let rad = Vec3::new(l.radiance[0], l.radiance[1], l.radiance[2]);
+                    let rad = [l.radiance[0], l.radiance[1], l.radiance[2]];
                     let (to_light, atten) = if l.vector[3] == 0.0 {
-                        (V3::splat(-lv), Lanes::ONE)
+                        (V3::splat(-lv), splat(1.0))
                     } else {
-                        let d = V3::splat(lv).sub(pos);
-                        (d.normalize_or_zero(), Lanes::ONE / d.dot(d).max(Lanes::splat(1e-8)))
+                        let d = V3 {
+                            x: map(&pos.x, |p| lv.x - p),
+                            y: map(&pos.y, |p| lv.y - p),
+                            z: map(&pos.z, |p| lv.z - p),
+                        };
+                        let d2 = d.dot(&d);
+                        (normalize_or_zero(&d), map(&d2, |d2| 1.0 / d2.max(1e-8)))
                     };
-                    let ndl = n.dot(to_light).max(Lanes::ZERO);
-                    let k = ndl * atten;
-                    diffuse = diffuse.add(V3 { x: k * rad.x, y: k * rad.y, z: k * rad.z });
-                    let lit = ndl.cmpgt(Lanes::ZERO);
-                    if m.specular > 0.0 && lit.any() {
-                        let h = to_light.add(view).normalize_or_zero();
-                        let nh = n.dot(h).max(Lanes::ZERO);
-                        // powf per lane, as the GPU's pow (a short-series exp2·log2
-                        // measured 1.10× slower over the whole textured bench)
-                        let p = Lanes::from_array(std::array::from_fn(|i| nh[i].powf(m.shininess)));
-                        let s = Lanes::select(lit, p * atten * m.specular, Lanes::ZERO);
-                        spec = spec.add(V3 { x: s * rad.x, y: s * rad.y, z: s * rad.z });
+                    let ndl = map(&n.dot(&to_light), |x| x.max(0.0));
+                    for c in 0..3 {
+                        for i in 0..LANES {
+                            diffuse[c][i] += ndl[i] * atten[i] * rad[c];
+                        }
+                    }
+                    let lit = ndl.iter().any(|&x| x > 0.0);
+                    if m.specular > 0.0 && lit {
+                        let h = normalize_or_zero(&V3 {
+                            x: zip(&to_light.x, &view.x, |a, b| a + b),
+                            y: zip(&to_light.y, &view.y, |a, b| a + b),
+                            z: zip(&to_light.z, &view.z, |a, b| a + b),
+                        });
+                        let nh = n.dot(&h);
+                        let mut s = [0.0; LANES];
+                        for i in 0..LANES {
+                            // exp2(shininess·log2 n·h), as a GPU's pow
+                            let p = simd::pow(nh[i].max(0.0), m.shininess);
+                            s[i] = if ndl[i] > 0.0 { p * atten[i] * m.specular } else { 0.0 };
+                        }
+                        for c in 0..3 {
+                            for i in 0..LANES {
+                                spec[c][i] += s[i] * rad[c];
+                            }
+                        }
                     }
                 }
-                let c = V3 {
-                    x: albedo.x * diffuse.x + spec.x,
-                    y: albedo.y * diffuse.y + spec.y,
-                    z: albedo.z * diffuse.z + spec.z,
-                };
-                for (i, o) in out.iter_mut().enumerate() {
-                    *o = encode(c.lane(i));
+                let mut c = [[0.0; LANES]; 3];
+                for k in 0..3 {
+                    for i in 0..LANES {
+                        c[k][i] = albedo[k][i] * diffuse[k][i] + spec[k][i];
+                    }
+                }
+                let e = hitex_core::texture::linear_to_srgb_u8;
+                for i in 0..LANES {
+                    if live & (1 << i) != 0 {
+                        rgba[i] = [e(c[0][i]), e(c[1][i]), e(c[2][i]), 255];
+                    }
                 }
             }
         }
-        out
     }
+}
+
+/// `v / |v|` per lane, or zero where `|v| = 0` (glam's `normalize_or_zero`).
+#[inline(always)]
+fn normalize_or_zero(v: &V3) -> V3 {
+    let len2 = v.dot(v);
+    let mut s = [0.0; LANES];
+    for i in 0..LANES {
+        let rcp = 1.0 / len2[i].sqrt();
+        s[i] = if rcp.is_finite() && len2[i] > 0.0 { rcp } else { 0.0 };
+    }
+    V3 { x: zip(&v.x, &s, |a, s| a * s), y: zip(&v.y, &s, |a, s| a * s), z: zip(&v.z, &s, |a, s| a * s) }
 }
 
 #[cfg(test)]
