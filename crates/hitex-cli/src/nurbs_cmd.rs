@@ -2,6 +2,7 @@
 
 use crate::{AnyRenderer, Backend, CliError, parse_size, save};
 use clap::{Args, Subcommand, ValueEnum};
+use glam::Vec3;
 use hitex_io::models::{NurbsModel, load_model};
 use hitex_render::nurbs::{ModelView, NurbsMode, PreparedNurbs, UpAxis};
 use std::path::PathBuf;
@@ -60,6 +61,8 @@ pub enum ModeArg {
     VertexNormals,
     /// Normals as RGB.
     Normal,
+    /// Draft angle against the pull direction: positive, within tolerance, negative.
+    Draft,
 }
 
 impl From<ModeArg> for NurbsMode {
@@ -73,6 +76,7 @@ impl From<ModeArg> for NurbsMode {
             ModeArg::Mean => NurbsMode::Mean,
             ModeArg::VertexNormals => NurbsMode::VertexNormals,
             ModeArg::Normal => NurbsMode::Normal,
+            ModeArg::Draft => NurbsMode::Draft,
         }
     }
 }
@@ -103,6 +107,13 @@ pub struct RenderArgs {
     /// Zebra stripes over 180°.
     #[arg(long, default_value_t = 10)]
     pub stripes: u32,
+    /// Pull (demoulding) direction of `--mode draft`: X,Y,Z or an axis
+    /// (x, -z, …); default: the model's up axis.
+    #[arg(long, value_parser = parse_pull, allow_hyphen_values = true)]
+    pub pull: Option<Vec3>,
+    /// Draft angles within ± this many degrees count as "no draft" (`--mode draft`).
+    #[arg(long, default_value_t = hitex_render::nurbs::DEFAULT_DRAFT_TOLERANCE_DEG, allow_negative_numbers = true)]
+    pub draft_tolerance: f32,
     /// Curvature mapped to full colour (default: from the model).
     #[arg(long, allow_negative_numbers = true)]
     pub range: Option<f32>,
@@ -130,6 +141,22 @@ pub fn mode_legend(f: &mut hitex_render::Frame, p: &PreparedNurbs, user_range: b
     let (name, units, rule, range) = match p.mode {
         NurbsMode::Gauss => ("GAUSS K", "1/LENGTH²", "±2×P75|K|", p.curvature_range[0]),
         NurbsMode::Mean => ("MEAN H", "1/LENGTH", "±2×P75|H|", p.curvature_range[1]),
+        NurbsMode::Draft => {
+            let t = compact(p.draft_tolerance_deg);
+            let q = |c: [f32; 3]| c.map(|x| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
+            let k = hitex_render::cpu::nurbs::DRAFT_COLORS;
+            let d = p.pull.normalize_or(Vec3::Z);
+            let pull = match (0..3).find(|&i| d[i].abs() == 1.0) {
+                Some(i) => format!("{}{}", if d[i] < 0.0 { '-' } else { '+' }, ["X", "Y", "Z"][i]),
+                None => format!("{},{},{}", compact(d.x), compact(d.y), compact(d.z)),
+            };
+            hitex_render::legend::swatch_legend(
+                f,
+                &["DRAFT PULL", &pull],
+                &[(q(k[0]), format!(">+{t}°")), (q(k[1]), format!("±{t}°")), (q(k[2]), format!("<-{t}°"))],
+            );
+            return;
+        }
         _ => return,
     };
     hitex_render::legend::diverging_legend(f, range, &[name, units, if user_range { "±RANGE" } else { rule }]);
@@ -137,7 +164,42 @@ pub fn mode_legend(f: &mut hitex_render::Frame, p: &PreparedNurbs, user_range: b
 
 /// Whether `mode` draws a legend (and so a view keeps its strip clear).
 pub fn has_legend(mode: NurbsMode) -> bool {
-    matches!(mode, NurbsMode::Gauss | NurbsMode::Mean)
+    matches!(mode, NurbsMode::Gauss | NurbsMode::Mean | NurbsMode::Draft)
+}
+
+/// A number in at most two decimals without trailing zeros: `1`, `0.71`, `-2.5`.
+fn compact(x: f32) -> String {
+    let s = format!("{x:.2}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" { "0".into() } else { s.into() }
+}
+
+/// `0.00, 0.00, 1.00`
+fn vec3_text(v: Vec3) -> String {
+    format!("{:.2}, {:.2}, {:.2}", v.x, v.y, v.z)
+}
+
+/// A pull direction: `X,Y,Z` (not zero, finite) or an axis name.
+fn parse_pull(s: &str) -> Result<Vec3, String> {
+    if !s.contains(',') {
+        return match UpAxis::parse(s)? {
+            UpAxis::Auto => Err("give X,Y,Z or an axis (x, y, z, -x, -y, -z)".into()),
+            a => Ok(a.direction()),
+        };
+    }
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(format!("'{s}' is not X,Y,Z"));
+    }
+    let mut v = [0.0f32; 3];
+    for (o, t) in v.iter_mut().zip(&parts) {
+        *o = t.trim().parse().map_err(|_| format!("'{t}' is not a number"))?;
+    }
+    let v = Vec3::from_array(v);
+    if !v.is_finite() || v.length() == 0.0 {
+        return Err(format!("'{s}' is no direction: give finite X,Y,Z, not all zero"));
+    }
+    Ok(v.normalize())
 }
 
 /// The window of normalised device coordinates a model is framed into: a
@@ -193,6 +255,12 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             if !(a.elevation.is_finite() && a.elevation.abs() <= 89.0) {
                 return Err(CliError::Input(format!("--elevation {} must be in −89…89 degrees", a.elevation)));
             }
+            if !(a.draft_tolerance.is_finite() && (0.0..=89.0).contains(&a.draft_tolerance)) {
+                return Err(CliError::Input(format!(
+                    "--draft-tolerance {} must be in 0…89 degrees",
+                    a.draft_tolerance
+                )));
+            }
             if let Some(r) = a.range
                 && !(r.is_finite() && r > 0.0)
             {
@@ -216,6 +284,8 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 println!("elevated {n} patches to the nearest prepared degree (3 or 5)");
             }
             let up = if a.up == UpAxis::Auto { p.detect_up() } else { a.up };
+            p.pull = a.pull.unwrap_or_else(|| up.direction());
+            p.draft_tolerance_deg = a.draft_tolerance;
             let view = ModelView { up, turn_deg: a.turn, elevation_deg: a.elevation };
             let window = view_window(a.size.0, a.size.1, has_legend(p.mode));
             let cam = p.view_camera(&view, a.size.0 as f32 / a.size.1 as f32, window);
@@ -245,6 +315,15 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 a.turn,
                 a.elevation
             );
+            if p.mode == NurbsMode::Draft {
+                println!(
+                    "draft against pull ({}){}: green beyond +{t}°, yellow within ±{t}°, red beyond −{t}° \
+                     (sign from each face's parametric normal Su × Sv)",
+                    vec3_text(p.pull.normalize_or(Vec3::Z)),
+                    if a.pull.is_none() { " (the up axis; --pull to set)" } else { "" },
+                    t = a.draft_tolerance
+                );
+            }
             if matches!(p.mode, NurbsMode::Gauss | NurbsMode::Mean) {
                 let range = if p.mode == NurbsMode::Gauss { p.curvature_range[0] } else { p.curvature_range[1] };
                 let v = hitex_render::legend::format_value(range);
@@ -376,5 +455,26 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             }
             Ok(())
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pull_directions_parse_and_bad_ones_are_refused() {
+        assert_eq!(parse_pull("z"), Ok(Vec3::Z));
+        assert_eq!(parse_pull("-x"), Ok(Vec3::NEG_X));
+        assert_eq!(parse_pull("0,0,2"), Ok(Vec3::Z));
+        let d = parse_pull("1, 0, 1").unwrap();
+        assert!((d - Vec3::new(1.0, 0.0, 1.0).normalize()).length() < 1e-6);
+        for bad in ["0,0,0", "1,2", "1,2,3,4", "a,b,c", "nan,0,1", "inf,0,0", "auto", "w"] {
+            assert!(parse_pull(bad).is_err(), "{bad} accepted");
+        }
+        assert_eq!(compact(1.0), "1");
+        assert_eq!(compact(0.7071), "0.71");
+        assert_eq!(compact(-0.001), "0");
+        assert_eq!(compact(2.5), "2.5");
     }
 }

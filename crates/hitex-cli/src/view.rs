@@ -187,11 +187,12 @@ struct BtfView {
     light: [f32; 2],
 }
 
-const NURBS_MODES: [(NurbsMode, &str); 8] = [
+const NURBS_MODES: [(NurbsMode, &str); 9] = [
     (NurbsMode::Shaded, "shaded"),
     (NurbsMode::Isophote, "isophote"),
     (NurbsMode::Zebra, "zebra"),
     (NurbsMode::Highlight, "highlight"),
+    (NurbsMode::Draft, "draft"),
     (NurbsMode::Gauss, "gauss"),
     (NurbsMode::Mean, "mean"),
     (NurbsMode::VertexNormals, "vertex-normals"),

@@ -443,3 +443,40 @@ fn btf_bad_input_gives_one_clear_line() {
     assert_eq!(o.status.code(), Some(2), "{lines:?}");
     assert!(lines[0].contains("big.png") && lines[0].contains("outside"), "{lines:?}");
 }
+
+#[test]
+fn draft_mode_reports_its_pull_and_refuses_bad_flags() {
+    let d = tmp("draft");
+    let out = d.join("d.png");
+    let o = hitex(&[
+        "nurbs",
+        "render",
+        "teapot",
+        "--mode",
+        "draft",
+        "--pull",
+        "-z",
+        "--draft-tolerance",
+        "2.5",
+        "--size",
+        "64x48",
+        "--backend",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(text.contains("draft against pull (0.00, 0.00, -1.00)") && text.contains("±2.5°"), "{text}");
+    assert!(out.exists());
+    for (flag, value, says) in [
+        ("--draft-tolerance", "95", "--draft-tolerance 95 must be in 0…89 degrees"),
+        ("--pull", "0,0,0", "no direction"),
+        ("--pull", "up", "is not an axis"),
+    ] {
+        let o = hitex(&["nurbs", "render", "teapot", "--mode", "draft", flag, value, "-o", out.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{flag} {value}: {err}");
+        assert!(err.contains(says), "{flag} {value}: {err}");
+    }
+}

@@ -16,6 +16,7 @@ struct Frame {
     ranges: vec4<f32>, // curvature range lo, hi; ambient
     background: vec4<f32>,
     model: vec4<f32>, // bounding sphere: centre, radius
+    pull: vec4<f32>, // draft: unit pull direction, sine of the tolerance
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -448,6 +449,18 @@ fn isophote(n: vec3<f32>, l: vec3<f32>, bands: u32) -> vec3<f32> {
     return vec3<f32>(0.10, 0.12, 0.20);
 }
 
+// draft classes: positive beyond the tolerance, within it, negative beyond it
+fn draft(facing: vec3<f32>, n: vec3<f32>, light: vec3<f32>, pull: vec4<f32>) -> vec3<f32> {
+    let s = dot(facing, pull.xyz);
+    var base = vec3<f32>(0.96, 0.80, 0.16);
+    if s > pull.w {
+        base = vec3<f32>(0.20, 0.72, 0.30);
+    } else if s < -pull.w {
+        base = vec3<f32>(0.86, 0.18, 0.15);
+    }
+    return base * (0.3 + 0.7 * abs(dot(n, light)));
+}
+
 fn zebra(n: vec3<f32>, view: vec3<f32>, up: vec3<f32>, stripes: u32) -> vec3<f32> {
     let r = n * (2.0 * dot(n, view)) - view;
     let elevation = asin(clamp(dot(r, up), -1.0, 1.0));
@@ -605,6 +618,8 @@ fn fs_main(in: VsOut) -> FsOut {
     let e = eval_patch(pid, in.u, in.v, second);
     let vn = in.normal;
     var n = exact_normal(e, vn);
+    // the surface's own orientation (Su × Sv), for the draft's sign
+    let facing = n;
     // two-sided
     let view = normalize(frame.camera.xyz - e.s);
     if dot(n, view) < 0.0 {
@@ -636,6 +651,8 @@ fn fs_main(in: VsOut) -> FsOut {
         c = isophote(m, light, frame.params.y);
     } else if mode == 6u {
         c = n * 0.5 + vec3<f32>(0.5);
+    } else if mode == 8u {
+        c = draft(facing, n, light, frame.pull);
     } else if mode == 7u {
         let r = frame.model.w;
         c = highlight(e.s, n, light, frame.model.xyz + light * (2.0 * r), 2.0 * r / f32(max(frame.params.z, 1u)));

@@ -42,6 +42,9 @@ pub enum NurbsMode {
     VertexNormals,
     /// The exact normal as RGB.
     Normal,
+    /// Draft angle against a pull direction in three classes: positive
+    /// beyond the tolerance, within it, negative beyond it.
+    Draft,
 }
 
 impl NurbsMode {
@@ -51,7 +54,7 @@ impl NurbsMode {
     }
 
     /// Every mode with its CLI name.
-    pub const ALL: [(&'static str, NurbsMode); 8] = [
+    pub const ALL: [(&'static str, NurbsMode); 9] = [
         ("shaded", NurbsMode::Shaded),
         ("isophote", NurbsMode::Isophote),
         ("zebra", NurbsMode::Zebra),
@@ -60,6 +63,7 @@ impl NurbsMode {
         ("mean", NurbsMode::Mean),
         ("vertex-normals", NurbsMode::VertexNormals),
         ("normal", NurbsMode::Normal),
+        ("draft", NurbsMode::Draft),
     ];
     /// The CLI and scene-file name of the mode.
     pub fn name(self) -> &'static str {
@@ -77,6 +81,7 @@ impl NurbsMode {
             NurbsMode::VertexNormals => 5,
             NurbsMode::Normal => 6,
             NurbsMode::Highlight => 7,
+            NurbsMode::Draft => 8,
         }
     }
 }
@@ -97,6 +102,9 @@ pub struct NurbsVertex {
     pub _pad: f32,
 }
 
+/// Default tolerance of the draft mode, degrees.
+pub const DEFAULT_DRAFT_TOLERANCE_DEG: f32 = 1.0;
+
 /// Per-frame uniforms of `nurbs.wgsl` (group 0, binding 0).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
@@ -116,6 +124,8 @@ pub struct NurbsFrame {
     pub background: [f32; 4],
     /// Model bounding sphere: centre xyz, radius w (places the highlight-line plane).
     pub model: [f32; 4],
+    /// Draft: unit pull direction xyz, w: sine of the draft tolerance.
+    pub pull: [f32; 4],
 }
 
 /// The paper's textures, as flat arrays (row-major, one row per patch).
@@ -244,6 +254,18 @@ impl UpAxis {
             _ => return Err(format!("'{s}' is not an axis: give auto, x, y, z, -x, -y or -z")),
         };
         Ok(Self::Axis(k, neg))
+    }
+
+    /// The axis as a unit vector (`Auto`: +Z).
+    pub fn direction(self) -> Vec3 {
+        match self {
+            Self::Auto => Vec3::Z,
+            Self::Axis(k, neg) => {
+                let mut v = Vec3::ZERO;
+                v[k.min(2)] = if neg { -1.0 } else { 1.0 };
+                v
+            }
+        }
     }
 
     /// `+X`, `-Z`, … (`auto` before it is resolved).
@@ -383,6 +405,10 @@ pub struct PreparedNurbs {
     pub bands: u32,
     /// Zebra stripes over 180°.
     pub stripes: u32,
+    /// Pull (demoulding) direction of the draft mode.
+    pub pull: Vec3,
+    /// Draft angles within ± this many degrees count as "no draft".
+    pub draft_tolerance_deg: f32,
     /// Curvature mapped to full colour on the ramp: [Gaussian, mean]; by default
     /// twice the area-weighted 75th percentile of |K| and |H| over the surface.
     pub curvature_range: [f32; 2],
@@ -596,6 +622,8 @@ impl PreparedNurbs {
             mode: NurbsMode::Shaded,
             bands: 12,
             stripes: 10,
+            pull: Vec3::Z,
+            draft_tolerance_deg: DEFAULT_DRAFT_TOLERANCE_DEG,
             curvature_range,
             background: Vec3::new(0.06, 0.07, 0.09),
             prepared_kernels: true,
@@ -732,6 +760,7 @@ impl PreparedNurbs {
             ranges: [-range, range, 0.12, 0.0],
             background: self.background.extend(1.0).to_array(),
             model: self.bounds.0.extend(self.bounds.1).to_array(),
+            pull: self.pull.normalize_or(Vec3::Z).extend(self.draft_tolerance_deg.to_radians().sin()).to_array(),
         }
     }
 

@@ -419,3 +419,75 @@ fn the_conservative_early_depth_changes_no_pixel() {
         }
     }
 }
+
+/// A quarter frustum about +Z narrowing upwards (radius 1 at z = 0, 0.9 at
+/// z = 1): every point's draft against +Z is atan(0.1) = 5.71°, its
+/// parametric normal Su × Sv pointing outwards and up.
+fn quarter_frustum() -> PreparedNurbs {
+    let w = std::f64::consts::FRAC_1_SQRT_2;
+    let mut pts = Vec::new();
+    for (z, r) in [(0.0, 1.0), (1.0, 0.9)] {
+        pts.push([r, 0.0, z, 1.0]);
+        pts.push([r, r, z, w]);
+        pts.push([0.0, r, z, 1.0]);
+    }
+    let s = hitex_core::nurbs::NurbsSurface::new(
+        2,
+        1,
+        3,
+        2,
+        vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+        vec![0.0, 0.0, 1.0, 1.0],
+        pts,
+    )
+    .unwrap();
+    let range = [s.domain()];
+    let mut p = PreparedNurbs::new(vec![s], &range, 6);
+    p.mode = NurbsMode::Draft;
+    p
+}
+
+/// Pixels of each draft class (positive, within, negative) by their hue.
+fn draft_classes(f: &hitex_render::Frame) -> [usize; 3] {
+    let mut n = [0; 3];
+    for px in f.rgba.chunks_exact(4) {
+        let (r, g, b) = (px[0] as f32, px[1] as f32, px[2] as f32);
+        if g > 1.8 * r && g > 1.8 * b {
+            n[0] += 1;
+        } else if r > 2.0 * b && g > 2.0 * b && g > 0.6 * r {
+            n[1] += 1;
+        } else if r > 2.5 * g && r > 2.5 * b {
+            n[2] += 1;
+        }
+    }
+    n
+}
+
+#[test]
+fn draft_classes_follow_the_exact_angle_on_both_backends() {
+    let cpu = CpuRenderer::new();
+    let mut gpu = gpu_or_skip("draft_classes_follow_the_exact_angle_on_both_backends");
+    // (pull, tolerance) → the one class every covered pixel must show
+    let cases = [
+        (glam::Vec3::Z, 3.0, 0),
+        (glam::Vec3::NEG_Z, 3.0, 2),
+        (glam::Vec3::Z, 8.0, 1),
+        (glam::Vec3::Z, 5.5, 0),
+        (glam::Vec3::Z, 5.9, 1),
+    ];
+    for (pull, tol, want) in cases {
+        let mut p = quarter_frustum();
+        p.pull = pull;
+        p.draft_tolerance_deg = tol;
+        let f = cpu.render_nurbs(&p, &p.camera, 96, 96).unwrap();
+        let n = draft_classes(&f);
+        let covered: usize = n.iter().sum();
+        assert!(covered > 800, "{pull} ±{tol}°: only {covered} classified pixels ({n:?})");
+        assert_eq!(n[want], covered, "{pull} ±{tol}°: classes {n:?}, want all in class {want}");
+        if let Some(g) = gpu.as_mut() {
+            let gf = g.render_nurbs(&p, &p.camera, 96, 96).unwrap();
+            assert_images(&format!("draft-{tol}-gpu"), &gf, &f, GPU_VS_CPU_ALIASED);
+            assert_eq!(draft_classes(&gf)[want], draft_classes(&gf).iter().sum::<usize>());
+        }
+    }
+}

@@ -293,6 +293,26 @@ pub fn isophote(n: Vec3, l: Vec3, bands: u32) -> Vec3 {
     if band % 2 == 0 { Vec3::new(0.95, 0.85, 0.32) } else { Vec3::new(0.10, 0.12, 0.20) }
 }
 
+/// Draft-mode colours (output-encoded): positive draft beyond the
+/// tolerance, within the tolerance, negative beyond it.
+pub const DRAFT_COLORS: [[f32; 3]; 3] = [[0.20, 0.72, 0.30], [0.96, 0.80, 0.16], [0.86, 0.18, 0.15]];
+
+/// Draft: the class of the angle between the surface and the pull
+/// direction `pull.xyz` (sin α = n·d with `facing` the surface's own normal;
+/// `pull.w` = sin of the tolerance), shaded by `n` (two-sided) so that the
+/// shape stays readable.
+pub fn draft(facing: Vec3, n: Vec3, light: Vec3, pull: Vec4) -> Vec3 {
+    let s = facing.dot(pull.truncate());
+    let class = if s > pull.w {
+        0
+    } else if s < -pull.w {
+        2
+    } else {
+        1
+    };
+    Vec3::from_array(DRAFT_COLORS[class]) * (0.3 + 0.7 * n.dot(light).abs())
+}
+
 /// Zebra: the reflected view ray against horizontal light bars.
 pub fn zebra(n: Vec3, view: Vec3, up: Vec3, stripes: u32) -> Vec3 {
     let r = n * (2.0 * n.dot(view)) - view;
@@ -371,6 +391,8 @@ impl<'a> NurbsProgram<'a> {
         let e = eval_packed(self.packed, patch, v[3], v[4], second, f.params[3] & 1 == 1);
         let vn = Vec3::new(v[0], v[1], v[2]);
         let mut n = exact_normal(&e, vn);
+        // the surface's own orientation (Su × Sv), for the draft's sign
+        let facing = n;
         // two-sided
         let cam = Vec3::new(f.camera[0], f.camera[1], f.camera[2]);
         let view = (cam - e.s).normalize_or_zero();
@@ -402,6 +424,7 @@ impl<'a> NurbsProgram<'a> {
                 raw(isophote(m, light, f.params[1]))
             }
             6 => raw(n * 0.5 + Vec3::splat(0.5)),
+            8 => raw(draft(facing, n, light, Vec4::from_array(f.pull))),
             7 => {
                 let (c, r) = (Vec3::new(f.model[0], f.model[1], f.model[2]), f.model[3]);
                 raw(highlight(e.s, n, light, c + light * (2.0 * r), 2.0 * r / f.params[2].max(1) as f32))

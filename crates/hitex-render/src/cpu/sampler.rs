@@ -301,9 +301,10 @@ mod tests {
     use hitex_core::texture::{Jacobian, sample};
 
     fn pyramid(cs: ColorSpace) -> MipPyramid {
-        let img =
-            Image::from_fn(37, 20, cs, |x, y| [(x * 7 + y * 3) as u8, (x * x + 5 * y) as u8, ((y * 11) ^ x) as u8, 255])
-                .unwrap();
+        let img = Image::from_fn(37, 20, cs, |x, y| {
+            [(x * 7 + y * 3) as u8, (x * x + 5 * y) as u8, ((y * 11) ^ x) as u8, 255]
+        })
+        .unwrap();
         MipPyramid::build(img)
     }
 
