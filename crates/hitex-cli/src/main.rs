@@ -165,6 +165,8 @@ pub enum CliError {
     Input(String),
     /// Something failed that is not the input's fault.
     Internal(String),
+    /// A check ran and found what it was asked to refuse (exit 1).
+    Check(String),
 }
 
 impl From<hitex_io::IoError> for CliError {
@@ -492,6 +494,10 @@ fn main() -> ExitCode {
         }
         Err(CliError::Internal(m)) => {
             eprintln!("hitex: internal error: {m}");
+            ExitCode::from(1)
+        }
+        Err(CliError::Check(m)) => {
+            eprintln!("hitex: check failed: {m}");
             ExitCode::from(1)
         }
     }

@@ -26,6 +26,10 @@ pub enum NurbsCommand {
         #[arg(short, long)]
         output: PathBuf,
     },
+    /// Continuity across the edges that faces share, from the exact surfaces:
+    /// largest gap (G0), normal angle (G1) and relative curvature jump (G2)
+    /// per edge, and naked edges. Exits 1 when a tolerance is exceeded.
+    Check(CheckArgs),
     /// Point, partials, normal and curvatures at a parameter.
     Eval {
         /// Model name or IGES file.
@@ -133,6 +137,185 @@ pub struct RenderArgs {
     /// The model's up axis: auto (a flat model's thinnest extent, else z), x, y, z, -x, -y or -z.
     #[arg(long, default_value = "auto", value_parser = UpAxis::parse, allow_hyphen_values = true)]
     pub up: UpAxis,
+}
+
+/// Arguments of `hitex nurbs check`.
+#[derive(Args)]
+pub struct CheckArgs {
+    /// Model name or file.
+    pub model: String,
+    /// Largest gap allowed, model units (default: 1e-4 of the model's bounding diagonal).
+    #[arg(long, allow_negative_numbers = true)]
+    pub g0: Option<f64>,
+    /// Largest angle between the normals across an edge, degrees (gates only when given;
+    /// 1° classifies otherwise).
+    #[arg(long, allow_negative_numbers = true)]
+    pub g1: Option<f64>,
+    /// Largest relative jump of the normal curvature across an edge (gates only when
+    /// given; 0.1 classifies otherwise).
+    #[arg(long, allow_negative_numbers = true)]
+    pub g2: Option<f64>,
+    /// Sample spacing along the edges, model units (default: 1/500 of the bounding diagonal).
+    #[arg(long, allow_negative_numbers = true)]
+    pub spacing: Option<f64>,
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The continuity an edge reaches under the tolerances.
+fn edge_class(e: &hitex_core::nurbs::continuity::Edge, g0: f64, g1: f64, g2: f64) -> &'static str {
+    match e.neighbour {
+        None => "naked",
+        Some(_) if e.g0.value > g0 => "gap",
+        Some(_) if e.g1_deg.value > g1 => "G0",
+        Some(_) if e.g2_rel.value > g2 => "G1",
+        Some(_) => "G2",
+    }
+}
+
+fn check(a: CheckArgs) -> Result<(), CliError> {
+    use hitex_core::nurbs::continuity::{CheckOptions, Face, check};
+    for (name, v) in [("--g0", a.g0), ("--g1", a.g1), ("--g2", a.g2), ("--spacing", a.spacing)] {
+        if let Some(x) = v
+            && !(x.is_finite() && x > 0.0)
+        {
+            return Err(CliError::Input(format!("{name} {x} must be finite and positive")));
+        }
+    }
+    let m = load_model(&a.model)?;
+    for w in &m.warnings {
+        eprintln!("hitex: warning: {}: {w}", m.name);
+    }
+    if m.surfaces.is_empty() {
+        return Err(CliError::Input(format!("{}: no surfaces to check", m.name)));
+    }
+    // the model's size: the diagonal of its control nets' bounds
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for s in &m.surfaces {
+        let (a, b) = s.surface.bounds();
+        for k in 0..3 {
+            lo[k] = lo[k].min(a[k]);
+            hi[k] = hi[k].max(b[k]);
+        }
+    }
+    let size = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt().max(1e-300);
+    let g0 = a.g0.unwrap_or(1e-4 * size);
+    let (g1, g2) = (a.g1.unwrap_or(1.0), a.g2.unwrap_or(0.1));
+    let spacing = a.spacing.unwrap_or(size / 500.0);
+    let opts = CheckOptions { spacing, match_radius: (2.0 * g0).max(2e-3 * size) };
+    let faces: Vec<Face> =
+        m.surfaces.iter().map(|s| Face { surface: &s.surface, range: s.range, loops: &s.trim }).collect();
+    let t = Instant::now();
+    let edges = check(&faces, &opts, size);
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    let shared: Vec<_> = edges.iter().filter(|e| e.neighbour.is_some()).collect();
+    let naked: Vec<_> = edges.iter().filter(|e| e.neighbour.is_none()).collect();
+    let failed: Vec<_> = shared
+        .iter()
+        .filter(|e| {
+            e.g0.value > g0 || a.g1.is_some_and(|t| e.g1_deg.value > t) || a.g2.is_some_and(|t| e.g2_rel.value > t)
+        })
+        .collect();
+    let de = |i: usize| m.surfaces[i].directory_entry;
+    if a.json {
+        let rows: Vec<_> = edges
+            .iter()
+            .map(|e| {
+                serde_json::json!({
+                    "face": e.face, "face_de": de(e.face),
+                    "neighbour": e.neighbour, "neighbour_de": e.neighbour.map(de),
+                    "samples": e.samples, "length": e.length,
+                    "g0": e.g0, "g1_deg": e.g1_deg, "g2_rel": e.g2_rel,
+                    "class": edge_class(e, g0, g1, g2),
+                })
+            })
+            .collect();
+        let v = serde_json::json!({
+            "model": m.name, "faces": m.surfaces.len(), "size": size,
+            "tolerances": {"g0": g0, "g1_deg": a.g1, "g2_rel": a.g2},
+            "classify": {"g0": g0, "g1_deg": g1, "g2_rel": g2},
+            "spacing": spacing, "match_radius": opts.match_radius,
+            "shared_edges": shared.len(), "naked_edges": naked.len(), "failed": failed.len(),
+            "edges": rows,
+        });
+        say!("{}", serde_json::to_string_pretty(&v).map_err(|e| CliError::Internal(e.to_string()))?);
+    } else {
+        let naked_len: f64 = naked.iter().map(|e| e.length).sum();
+        say!(
+            "{}: {} (numbered as --patch counts), {} shared, {} naked (length {}); sampled every {}, matched within {} ({ms:.0} ms)",
+            m.name,
+            crate::count(m.surfaces.len(), "face", "faces"),
+            crate::count(shared.len(), "edge", "edges"),
+            crate::count(naked.len(), "edge", "edges"),
+            fmt(naked_len),
+            fmt(spacing),
+            fmt(opts.match_radius),
+        );
+        say!(
+            "classes: G2 within |Δκ|/κ ≤ {g2}, G1 within {g1}°, G0 within gap ≤ {}; \
+             G1/G2 gate only when --g1/--g2 are given",
+            fmt(g0)
+        );
+        say!(
+            "{:>14}  {:>10} {:>6}  {:>10} {:>8} {:>8}  {:<5}  worst at",
+            "faces",
+            "length",
+            "samples",
+            "G0 gap",
+            "G1 deg",
+            "G2 rel",
+            "class"
+        );
+        for e in &edges {
+            let pair = match e.neighbour {
+                Some(b) => format!("{}–{}", e.face, b),
+                None => format!("{}", e.face),
+            };
+            let class = edge_class(e, g0, g1, g2);
+            // where the figure that decides the class peaks
+            let at = match class {
+                "gap" | "G2" => e.g0.at,
+                "G0" => e.g1_deg.at,
+                "G1" => e.g2_rel.at,
+                _ => [f64::NAN; 3],
+            };
+            let at = if e.neighbour.is_some() {
+                format!("({}, {}, {})", fmt(at[0]), fmt(at[1]), fmt(at[2]))
+            } else {
+                String::new()
+            };
+            say!(
+                "{pair:>14}  {:>10} {:>6}  {:>10} {:>8.3} {:>8.3}  {class:<5}  {at}",
+                fmt(e.length),
+                e.samples,
+                fmt(e.g0.value),
+                e.g1_deg.value,
+                e.g2_rel.value
+            );
+        }
+    }
+    if !failed.is_empty() {
+        return Err(CliError::Check(format!(
+            "{}: {} of {} exceed the tolerances",
+            m.name,
+            crate::count(failed.len(), "shared edge", "shared edges"),
+            shared.len()
+        )));
+    }
+    Ok(())
+}
+
+/// A length or figure in 4 significant digits.
+fn fmt(x: f64) -> String {
+    if x == 0.0 {
+        "0".into()
+    } else if (1e-3..1e5).contains(&x.abs()) {
+        let digits = (3 - x.abs().log10().floor() as i32).clamp(0, 6) as usize;
+        format!("{x:.digits$}")
+    } else {
+        format!("{x:.3e}")
+    }
 }
 
 /// Draws the legend of `p`'s display mode, if it has one: the curvature ramp
@@ -413,6 +596,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             println!("wrote {} ({})", output.display(), crate::count(m.surfaces.len(), "patch", "patches"));
             Ok(())
         }
+        NurbsCommand::Check(a) => check(a),
         NurbsCommand::Eval { model, patch, uv, json } => {
             let m = load_model(&model)?;
             let s = m.surfaces.get(patch).ok_or_else(|| {

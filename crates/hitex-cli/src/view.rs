@@ -578,7 +578,9 @@ impl ViewApp {
         self.status = match &self.last {
             Some(f) => match save(f, path) {
                 Ok(()) => format!("wrote {} ({}x{})", path.display(), f.width, f.height),
-                Err(CliError::Input(e) | CliError::Internal(e)) => format!("screenshot failed: {e}"),
+                Err(CliError::Input(e) | CliError::Internal(e) | CliError::Check(e)) => {
+                    format!("screenshot failed: {e}")
+                }
             },
             None => "nothing rendered yet".into(),
         };

@@ -480,3 +480,29 @@ fn draft_mode_reports_its_pull_and_refuses_bad_flags() {
         assert!(err.contains(says), "{flag} {value}: {err}");
     }
 }
+
+#[test]
+fn nurbs_check_measures_edges_and_gates_on_tolerances() {
+    // the teapot's patches meet exactly (G0), some only with tangent planes (G1)
+    let o = hitex(&["nurbs", "check", "teapot", "--json"]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!(v["faces"], 32);
+    assert!(v["shared_edges"].as_u64().unwrap() >= 40, "{}", v["shared_edges"]);
+    assert!(v["naked_edges"].as_u64().unwrap() >= 4, "{}", v["naked_edges"]);
+    let edges = v["edges"].as_array().unwrap();
+    let gap = edges.iter().map(|e| e["g0"]["value"].as_f64().unwrap()).fold(0.0, f64::max);
+    assert!(gap < 1e-12, "largest gap {gap}");
+    assert!(edges.iter().any(|e| e["class"] == "G1") && edges.iter().any(|e| e["class"] == "G2"));
+    // a G2 requirement fails on the G1 seams: exit 1, named
+    let o = hitex(&["nurbs", "check", "teapot", "--g2", "0.1"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("check failed: teapot:") && err.contains("exceed the tolerances"), "{err}");
+    for (flag, value) in [("--g0", "0"), ("--g1", "-1"), ("--spacing", "nan")] {
+        let o = hitex(&["nurbs", "check", "teapot", flag, value]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{flag} {value}: {err}");
+        assert!(err.contains(&format!("{flag} ")) && err.contains("finite and positive"), "{err}");
+    }
+}

@@ -11,6 +11,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod basis;
+pub mod continuity;
 pub mod elevate;
 pub mod knots;
 pub mod surface;

@@ -144,6 +144,14 @@ pub mod v3 {
     pub fn scale<T: Real>(a: [T; 3], s: T) -> [T; 3] {
         [a[0] * s, a[1] * s, a[2] * s]
     }
+    /// a − b
+    pub fn sub<T: Real>(a: [T; 3], b: [T; 3]) -> [T; 3] {
+        [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+    }
+    /// |a|
+    pub fn len(a: [f64; 3]) -> f64 {
+        dot(a, a).sqrt()
+    }
 }
 
 /// Unit normal from first and second derivatives, with the limit normal where
