@@ -282,8 +282,11 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     if a.exaggeration < 0.0 {
         return Err(CliError::Input(format!("--exaggeration {} must be finite and ≥ 0", a.exaggeration)));
     }
-    if !(1.0..=89.0).contains(&a.pitch) {
-        return Err(CliError::Input(format!("--pitch {} must be in 1..=89 degrees below the horizon", a.pitch)));
+    if !(a.pitch > 0.0 && a.pitch <= 90.0) {
+        return Err(CliError::Input(format!(
+            "--pitch {}° must be in (0, 90] below the horizon (90 looks straight down)",
+            a.pitch
+        )));
     }
     if let Some(alt) = a.altitude
         && alt <= 0.0
@@ -336,7 +339,9 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
         0.6 * (spacing[0] * dem.width as f32).abs().max((spacing[1] * dem.height as f32).abs()).max(1.0)
     });
     let dist = altitude / p.sin();
-    let camera = Camera::new(target - dir * dist, target, Vec3::Y, 45.0, (dist * 0.01).max(1.0), dist * 40.0)
+    // straight down, the heading gives the image's up
+    let up = if a.pitch < 90.0 { Vec3::Y } else { Vec3::new(h.sin(), 0.0, -h.cos()) };
+    let camera = Camera::new(target - dir * dist, target, up, 45.0, (dist * 0.01).max(1.0), dist * 40.0)
         .map_err(|e| CliError::Input(e.to_string()))?;
     let material = Material {
         name: "imagery".into(),
@@ -451,8 +456,11 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
             return Err(CliError::Input(format!("{name} must be finite")));
         }
     }
-    if !(1.0..=90.0).contains(&a.pitch) {
-        return Err(CliError::Input(format!("--pitch {} must be in 1..=90 degrees below the horizon", a.pitch)));
+    if !(a.pitch > 0.0 && a.pitch <= 90.0) {
+        return Err(CliError::Input(format!(
+            "--pitch {}° must be in (0, 90] below the horizon (90 looks straight down)",
+            a.pitch
+        )));
     }
     if !(1.0..=170.0).contains(&a.fov) {
         return Err(CliError::Input(format!("--fov {} must be in 1..=170 degrees", a.fov)));

@@ -324,12 +324,19 @@ fn pitch_is_below_the_horizon_everywhere() {
         let o = hitex(&args);
         assert_eq!(o.status.code(), Some(2), "{args:?}");
         let e = error_lines(&o).join("\n");
-        assert!(e.contains("below the horizon"), "{args:?}: {e}");
+        assert!(e.contains("must be in (0, 90] below the horizon (90 looks straight down)"), "{args:?}: {e}");
     }
-    // straight down is 90 for a flight, as in spans
-    let o =
-        hitex(&["terrain", "fly", s, "--pitch", "90", "--frames", "1", "--size", "64x48", "--backend", "cpu", "-o", f]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // straight down is 90 everywhere, and a grazing 0.5 is a pitch too
+    for pitch in ["90", "0.5"] {
+        for args in [
+            vec!["terrain", "render", "--dem", dem, "--size", "64x48", "--backend", "cpu", "-o", o_],
+            vec!["terrain", "spans", "--size", "64x48", "--frames", "1", "-o", o_],
+            vec!["terrain", "fly", s, "--frames", "1", "--size", "64x48", "--backend", "cpu", "-o", f],
+        ] {
+            let o = hitex(&[&args[..], &["--pitch", pitch][..]].concat());
+            assert!(o.status.success(), "{args:?} --pitch {pitch}: {}", String::from_utf8_lossy(&o.stderr));
+        }
+    }
     // a path key in the old sense (0 = straight down) is refused with the convention named
     let path = d.join("path.toml");
     std::fs::write(&path, "[[key]]\nt = 0\nx = 0.5\ny = 0.5\naltitude = 100\npitch = 0\nheading = 0\n").unwrap();
