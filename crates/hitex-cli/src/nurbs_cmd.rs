@@ -67,6 +67,8 @@ pub enum ModeArg {
     Normal,
     /// Draft angle against the pull direction: positive, within tolerance, negative.
     Draft,
+    /// Where a ball tool of radius --min-radius cannot reach (concave, tighter than it).
+    Radius,
 }
 
 impl From<ModeArg> for NurbsMode {
@@ -81,6 +83,7 @@ impl From<ModeArg> for NurbsMode {
             ModeArg::VertexNormals => NurbsMode::VertexNormals,
             ModeArg::Normal => NurbsMode::Normal,
             ModeArg::Draft => NurbsMode::Draft,
+            ModeArg::Radius => NurbsMode::Radius,
         }
     }
 }
@@ -118,6 +121,10 @@ pub struct RenderArgs {
     /// Draft angles within ± this many degrees count as "no draft" (`--mode draft`).
     #[arg(long, default_value_t = hitex_render::nurbs::DEFAULT_DRAFT_TOLERANCE_DEG, allow_negative_numbers = true)]
     pub draft_tolerance: f32,
+    /// Tool radius of `--mode radius`, model units (default: 1/50 of the model's
+    /// bounding diameter).
+    #[arg(long, allow_negative_numbers = true)]
+    pub min_radius: Option<f32>,
     /// Curvature mapped to full colour (default: from the model).
     #[arg(long, allow_negative_numbers = true)]
     pub range: Option<f32>,
@@ -324,6 +331,17 @@ pub fn mode_legend(f: &mut hitex_render::Frame, p: &PreparedNurbs, user_range: b
     let (name, units, rule, range) = match p.mode {
         NurbsMode::Gauss => ("GAUSS K", "1/LENGTH²", "±2×P75|K|", p.curvature_range[0]),
         NurbsMode::Mean => ("MEAN H", "1/LENGTH", "±2×P75|H|", p.curvature_range[1]),
+        NurbsMode::Radius => {
+            let q = |c: [f32; 3]| c.map(|x| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
+            let k = hitex_render::cpu::nurbs::RADIUS_COLORS;
+            let r = format!("= {}", hitex_render::legend::format_value(p.effective_tool_radius()));
+            hitex_render::legend::swatch_legend(
+                f,
+                &["TOOL R", &r],
+                &[(q(k[0]), "TIGHT".into()), (q(k[1]), "CONCAVE".into()), (q(k[2]), "CONVEX".into())],
+            );
+            return;
+        }
         NurbsMode::Draft => {
             let t = compact(p.draft_tolerance_deg);
             let q = |c: [f32; 3]| c.map(|x| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
@@ -347,7 +365,7 @@ pub fn mode_legend(f: &mut hitex_render::Frame, p: &PreparedNurbs, user_range: b
 
 /// Whether `mode` draws a legend (and so a view keeps its strip clear).
 pub fn has_legend(mode: NurbsMode) -> bool {
-    matches!(mode, NurbsMode::Gauss | NurbsMode::Mean | NurbsMode::Draft)
+    matches!(mode, NurbsMode::Gauss | NurbsMode::Mean | NurbsMode::Draft | NurbsMode::Radius)
 }
 
 /// A number in at most two decimals without trailing zeros: `1`, `0.71`, `-2.5`.
@@ -444,6 +462,11 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                     a.draft_tolerance
                 )));
             }
+            if let Some(r) = a.min_radius
+                && !(r.is_finite() && r > 0.0)
+            {
+                return Err(CliError::Input(format!("--min-radius {r} must be finite and positive")));
+            }
             if let Some(r) = a.range
                 && !(r.is_finite() && r > 0.0)
             {
@@ -469,6 +492,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             let up = if a.up == UpAxis::Auto { p.detect_up() } else { a.up };
             p.pull = a.pull.unwrap_or_else(|| up.direction());
             p.draft_tolerance_deg = a.draft_tolerance;
+            p.tool_radius = a.min_radius.unwrap_or(0.0);
             let view = ModelView { up, turn_deg: a.turn, elevation_deg: a.elevation };
             let window = view_window(a.size.0, a.size.1, has_legend(p.mode));
             let cam = p.view_camera(&view, a.size.0 as f32 / a.size.1 as f32, window);
@@ -498,6 +522,15 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 a.turn,
                 a.elevation
             );
+            if p.mode == NurbsMode::Radius {
+                println!(
+                    "tool radius {}{}: red (tight) where the surface is concave with a radius of curvature \
+                     below it (a ball tool that size cannot reach), blue concave with a radius from R to 100 R, \
+                     grey convex or flatter (concave towards each face's parametric normal Su × Sv)",
+                    hitex_render::legend::format_value(p.effective_tool_radius()),
+                    if a.min_radius.is_none() { " (1/50 of the model's diameter; --min-radius to set)" } else { "" }
+                );
+            }
             if p.mode == NurbsMode::Draft {
                 println!(
                     "draft against pull ({}){}: green beyond +{t}°, yellow within ±{t}°, red beyond −{t}° \

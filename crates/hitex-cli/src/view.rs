@@ -187,12 +187,13 @@ struct BtfView {
     light: [f32; 2],
 }
 
-const NURBS_MODES: [(NurbsMode, &str); 9] = [
+const NURBS_MODES: [(NurbsMode, &str); 10] = [
     (NurbsMode::Shaded, "shaded"),
     (NurbsMode::Isophote, "isophote"),
     (NurbsMode::Zebra, "zebra"),
     (NurbsMode::Highlight, "highlight"),
     (NurbsMode::Draft, "draft"),
+    (NurbsMode::Radius, "radius"),
     (NurbsMode::Gauss, "gauss"),
     (NurbsMode::Mean, "mean"),
     (NurbsMode::VertexNormals, "vertex-normals"),

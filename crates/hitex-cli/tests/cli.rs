@@ -473,6 +473,7 @@ fn draft_mode_reports_its_pull_and_refuses_bad_flags() {
         ("--draft-tolerance", "95", "--draft-tolerance 95 must be in 0…89 degrees"),
         ("--pull", "0,0,0", "no direction"),
         ("--pull", "up", "is not an axis"),
+        ("--min-radius", "0", "--min-radius 0 must be finite and positive"),
     ] {
         let o = hitex(&["nurbs", "render", "teapot", "--mode", "draft", flag, value, "-o", out.to_str().unwrap()]);
         let err = String::from_utf8_lossy(&o.stderr);

@@ -449,6 +449,19 @@ fn isophote(n: vec3<f32>, l: vec3<f32>, bands: u32) -> vec3<f32> {
     return vec3<f32>(0.10, 0.12, 0.20);
 }
 
+// radius classes: concave tighter than the tool (1/R = inv_radius), concave, convex or flat
+fn reach_class(e: Eval, facing: vec3<f32>, n: vec3<f32>, light: vec3<f32>, inv_radius: f32) -> vec3<f32> {
+    let kh = curvatures(e, facing);
+    let k1 = kh.y + sqrt(max(kh.y * kh.y - kh.x, 0.0));
+    var base = vec3<f32>(0.72, 0.75, 0.80);
+    if k1 > inv_radius {
+        base = vec3<f32>(0.86, 0.18, 0.15);
+    } else if k1 > 0.01 * inv_radius {
+        base = vec3<f32>(0.30, 0.50, 0.90);
+    }
+    return base * (0.3 + 0.7 * abs(dot(n, light)));
+}
+
 // draft classes: positive beyond the tolerance, within it, negative beyond it
 fn draft(facing: vec3<f32>, n: vec3<f32>, light: vec3<f32>, pull: vec4<f32>) -> vec3<f32> {
     let s = dot(facing, pull.xyz);
@@ -613,7 +626,7 @@ fn fs_main(in: VsOut) -> FsOut {
     if at == 2u {
         discard;
     }
-    let second = mode == 3u || mode == 4u;
+    let second = mode == 3u || mode == 4u || mode == 9u;
     // exact point and derivatives
     let e = eval_patch(pid, in.u, in.v, second);
     let vn = in.normal;
@@ -653,6 +666,8 @@ fn fs_main(in: VsOut) -> FsOut {
         c = n * 0.5 + vec3<f32>(0.5);
     } else if mode == 8u {
         c = draft(facing, n, light, frame.pull);
+    } else if mode == 9u {
+        c = reach_class(e, facing, n, light, frame.ranges.w);
     } else if mode == 7u {
         let r = frame.model.w;
         c = highlight(e.s, n, light, frame.model.xyz + light * (2.0 * r), 2.0 * r / f32(max(frame.params.z, 1u)));

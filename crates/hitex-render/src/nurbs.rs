@@ -45,6 +45,9 @@ pub enum NurbsMode {
     /// Draft angle against a pull direction in three classes: positive
     /// beyond the tolerance, within it, negative beyond it.
     Draft,
+    /// Where a ball tool of a given radius cannot reach: concave with a
+    /// radius of curvature below it, concave above it, convex or flat.
+    Radius,
 }
 
 impl NurbsMode {
@@ -54,7 +57,7 @@ impl NurbsMode {
     }
 
     /// Every mode with its CLI name.
-    pub const ALL: [(&'static str, NurbsMode); 9] = [
+    pub const ALL: [(&'static str, NurbsMode); 10] = [
         ("shaded", NurbsMode::Shaded),
         ("isophote", NurbsMode::Isophote),
         ("zebra", NurbsMode::Zebra),
@@ -64,6 +67,7 @@ impl NurbsMode {
         ("vertex-normals", NurbsMode::VertexNormals),
         ("normal", NurbsMode::Normal),
         ("draft", NurbsMode::Draft),
+        ("radius", NurbsMode::Radius),
     ];
     /// The CLI and scene-file name of the mode.
     pub fn name(self) -> &'static str {
@@ -82,6 +86,7 @@ impl NurbsMode {
             NurbsMode::Normal => 6,
             NurbsMode::Highlight => 7,
             NurbsMode::Draft => 8,
+            NurbsMode::Radius => 9,
         }
     }
 }
@@ -118,7 +123,8 @@ pub struct NurbsFrame {
     /// x: mode, y: isophote bands, z: zebra / highlight stripes, w: flags
     /// (bit 0: prepared-degree kernels, bit 1: patch-boundary overlay).
     pub params: [u32; 4],
-    /// x, y: curvature range for the colour ramp; z: ambient; w: 0.
+    /// x, y: curvature range for the colour ramp; z: ambient; w: 1 / the
+    /// tool radius of the radius mode.
     pub ranges: [f32; 4],
     /// Linear background RGB.
     pub background: [f32; 4],
@@ -409,6 +415,9 @@ pub struct PreparedNurbs {
     pub pull: Vec3,
     /// Draft angles within ± this many degrees count as "no draft".
     pub draft_tolerance_deg: f32,
+    /// Tool radius of the radius mode (model units; 0: 1/50 of the model's
+    /// bounding diameter).
+    pub tool_radius: f32,
     /// Curvature mapped to full colour on the ramp: [Gaussian, mean]; by default
     /// twice the area-weighted 75th percentile of |K| and |H| over the surface.
     pub curvature_range: [f32; 2],
@@ -624,6 +633,7 @@ impl PreparedNurbs {
             stripes: 10,
             pull: Vec3::Z,
             draft_tolerance_deg: DEFAULT_DRAFT_TOLERANCE_DEG,
+            tool_radius: 0.0,
             curvature_range,
             background: Vec3::new(0.06, 0.07, 0.09),
             prepared_kernels: true,
@@ -757,10 +767,20 @@ impl PreparedNurbs {
                 self.stripes,
                 self.prepared_kernels as u32 | (self.boundaries as u32) << 1,
             ],
-            ranges: [-range, range, 0.12, 0.0],
+            ranges: [-range, range, 0.12, 1.0 / self.effective_tool_radius()],
             background: self.background.extend(1.0).to_array(),
             model: self.bounds.0.extend(self.bounds.1).to_array(),
             pull: self.pull.normalize_or(Vec3::Z).extend(self.draft_tolerance_deg.to_radians().sin()).to_array(),
+        }
+    }
+
+    /// The radius mode's tool radius: as set, else 1/50 of the model's
+    /// bounding diameter.
+    pub fn effective_tool_radius(&self) -> f32 {
+        if self.tool_radius > 0.0 && self.tool_radius.is_finite() {
+            self.tool_radius
+        } else {
+            (self.bounds.1 / 25.0).max(f32::MIN_POSITIVE)
         }
     }
 

@@ -491,3 +491,79 @@ fn draft_classes_follow_the_exact_angle_on_both_backends() {
         }
     }
 }
+
+/// A quarter cylinder of radius 1 about +Z, its parametric normal outwards
+/// (convex) or, with u reversed, inwards (concave, radius 1).
+fn quarter_cylinder(inwards: bool) -> PreparedNurbs {
+    let w = std::f64::consts::FRAC_1_SQRT_2;
+    let mut pts = Vec::new();
+    for z in [0.0, 1.5] {
+        let mut row = vec![[1.0, 0.0, z, 1.0], [1.0, 1.0, z, w], [0.0, 1.0, z, 1.0]];
+        if inwards {
+            row.reverse();
+        }
+        pts.extend(row);
+    }
+    let s = hitex_core::nurbs::NurbsSurface::new(
+        2,
+        1,
+        3,
+        2,
+        vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+        vec![0.0, 0.0, 1.0, 1.0],
+        pts,
+    )
+    .unwrap();
+    let range = [s.domain()];
+    let mut p = PreparedNurbs::new(vec![s], &range, 6);
+    p.mode = NurbsMode::Radius;
+    p
+}
+
+/// Pixels of each radius class (tight, concave, convex or flat) by their hue.
+fn radius_classes(f: &hitex_render::Frame, bg: [u8; 3]) -> [usize; 3] {
+    let mut n = [0; 3];
+    let mut model = 0;
+    for px in f.rgba.chunks_exact(4) {
+        let (r, g, b) = (px[0] as f32, px[1] as f32, px[2] as f32);
+        if px[..3].iter().zip(bg).all(|(a, b)| a.abs_diff(b) <= 3) {
+            continue;
+        }
+        model += 1;
+        if r > 2.5 * g && r > 2.5 * b {
+            n[0] += 1;
+        } else if b > 1.5 * r && b > g {
+            n[1] += 1;
+        } else if (r - g).abs() < 0.15 * g && b >= r {
+            n[2] += 1;
+        }
+    }
+    // every pixel of the model shows one of the classes
+    let classified: usize = n.iter().sum();
+    assert!(classified * 100 >= model * 98, "{classified} of {model} model pixels classified: {n:?}");
+    n
+}
+
+#[test]
+fn radius_classes_follow_the_exact_curvature_on_both_backends() {
+    let cpu = CpuRenderer::new();
+    let mut gpu = gpu_or_skip("radius_classes_follow_the_exact_curvature_on_both_backends");
+    // (inwards, tool radius) → the one class every covered pixel must show
+    for (inwards, radius, want) in [(false, 0.5, 2), (true, 0.5, 1), (true, 2.0, 0), (true, 0.98, 1), (true, 1.02, 0)] {
+        let mut p = quarter_cylinder(inwards);
+        p.tool_radius = radius;
+        let e = hitex_core::texture::linear_to_srgb_u8;
+        let bg = [e(p.background.x), e(p.background.y), e(p.background.z)];
+        let f = cpu.render_nurbs(&p, &p.camera, 96, 96).unwrap();
+        let n = radius_classes(&f, bg);
+        let covered: usize = n.iter().sum();
+        assert!(covered > 800, "inwards {inwards} R {radius}: only {covered} classified pixels ({n:?})");
+        assert_eq!(n[want], covered, "inwards {inwards} R {radius}: classes {n:?}, want all in class {want}");
+        if let Some(g) = gpu.as_mut() {
+            let gf = g.render_nurbs(&p, &p.camera, 96, 96).unwrap();
+            assert_images(&format!("radius-{inwards}-{radius}-gpu"), &gf, &f, GPU_VS_CPU_ALIASED);
+            let gn = radius_classes(&gf, bg);
+            assert_eq!(gn[want], gn.iter().sum::<usize>(), "gpu: {gn:?}");
+        }
+    }
+}

@@ -313,6 +313,28 @@ pub fn draft(facing: Vec3, n: Vec3, light: Vec3, pull: Vec4) -> Vec3 {
     Vec3::from_array(DRAFT_COLORS[class]) * (0.3 + 0.7 * n.dot(light).abs())
 }
 
+/// Radius-mode colours (output-encoded): concave tighter than the tool,
+/// concave with a radius from R to 100 R, convex or flat.
+pub const RADIUS_COLORS: [[f32; 3]; 3] = [[0.86, 0.18, 0.15], [0.30, 0.50, 0.90], [0.72, 0.75, 0.80]];
+
+/// Radius mode: the largest principal curvature κ1 towards `facing` (the
+/// surface's own normal: positive κ bends towards the side the normal
+/// points to, where a tool comes from) against `1/R` = `inv_radius`,
+/// shaded by `n` (two-sided). Radii beyond 100 R count as flat, so that a
+/// cylinder's straight direction does not flicker on rounding.
+pub fn reach_class(e: &Eval, facing: Vec3, n: Vec3, light: Vec3, inv_radius: f32) -> Vec3 {
+    let (k, h) = curvatures(e, facing);
+    let k1 = h + (h * h - k).max(0.0).sqrt();
+    let class = if k1 > inv_radius {
+        0
+    } else if k1 > 0.01 * inv_radius {
+        1
+    } else {
+        2
+    };
+    Vec3::from_array(RADIUS_COLORS[class]) * (0.3 + 0.7 * n.dot(light).abs())
+}
+
 /// Zebra: the reflected view ray against horizontal light bars.
 pub fn zebra(n: Vec3, view: Vec3, up: Vec3, stripes: u32) -> Vec3 {
     let r = n * (2.0 * n.dot(view)) - view;
@@ -386,7 +408,7 @@ impl<'a> NurbsProgram<'a> {
         if at == Reach::Cut {
             return ([0, 0, 0, 0], f32::NAN);
         }
-        let second = mode == 3 || mode == 4;
+        let second = mode == 3 || mode == 4 || mode == 9;
         // exact point and derivatives
         let e = eval_packed(self.packed, patch, v[3], v[4], second, f.params[3] & 1 == 1);
         let vn = Vec3::new(v[0], v[1], v[2]);
@@ -425,6 +447,7 @@ impl<'a> NurbsProgram<'a> {
             }
             6 => raw(n * 0.5 + Vec3::splat(0.5)),
             8 => raw(draft(facing, n, light, Vec4::from_array(f.pull))),
+            9 => raw(reach_class(&e, facing, n, light, f.ranges[3])),
             7 => {
                 let (c, r) = (Vec3::new(f.model[0], f.model[1], f.model[2]), f.model[3]);
                 raw(highlight(e.s, n, light, c + light * (2.0 * r), 2.0 * r / f.params[2].max(1) as f32))
