@@ -690,7 +690,7 @@ mod tests {
             assert!(parse_pull(bad).is_err(), "{bad} accepted");
         }
         assert_eq!(compact(1.0), "1");
-        assert_eq!(compact(0.7071), "0.71");
+        assert_eq!(compact(0.7149), "0.71");
         assert_eq!(compact(-0.001), "0");
         assert_eq!(compact(2.5), "2.5");
     }

@@ -278,11 +278,14 @@ pub fn check(faces: &[Face], opts: &CheckOptions, size: f64) -> Vec<Edge> {
                     let next = matched[(j + 1) % n].map(|m| m.0);
                     let mine = matched[j].map(|m| m.0);
                     for side in [prev, next] {
-                        if side.is_some() && side != mine && prev != mine && next != mine {
-                            if let Some(m) = all[j].iter().find(|m| Some(m.0) == side) {
-                                matched[j] = Some(*m);
-                                break;
-                            }
+                        if side.is_some()
+                            && side != mine
+                            && prev != mine
+                            && next != mine
+                            && let Some(m) = all[j].iter().find(|m| Some(m.0) == side)
+                        {
+                            matched[j] = Some(*m);
+                            break;
                         }
                     }
                 }
