@@ -420,16 +420,18 @@ fn the_conservative_early_depth_changes_no_pixel() {
     }
 }
 
-/// A quarter frustum about +Z narrowing upwards (radius 1 at z = 0, 0.9 at
-/// z = 1): every point's draft against +Z is atan(0.1) = 5.71°, its
-/// parametric normal Su × Sv pointing outwards and up.
-fn quarter_frustum() -> PreparedNurbs {
+/// A quarter of a surface of revolution about +Z: radius `r0` at z = 0,
+/// `r1` at z = `height`; the parametric normal Su × Sv points outwards, or,
+/// with u reversed, inwards. As a single prepared patch in `mode`.
+fn quarter_turn(r0: f64, r1: f64, height: f64, inwards: bool, mode: NurbsMode) -> PreparedNurbs {
     let w = std::f64::consts::FRAC_1_SQRT_2;
     let mut pts = Vec::new();
-    for (z, r) in [(0.0, 1.0), (1.0, 0.9)] {
-        pts.push([r, 0.0, z, 1.0]);
-        pts.push([r, r, z, w]);
-        pts.push([0.0, r, z, 1.0]);
+    for (z, r) in [(0.0, r0), (height, r1)] {
+        let mut row = vec![[r, 0.0, z, 1.0], [r, r, z, w], [0.0, r, z, 1.0]];
+        if inwards {
+            row.reverse();
+        }
+        pts.extend(row);
     }
     let s = hitex_core::nurbs::NurbsSurface::new(
         2,
@@ -443,8 +445,15 @@ fn quarter_frustum() -> PreparedNurbs {
     .unwrap();
     let range = [s.domain()];
     let mut p = PreparedNurbs::new(vec![s], &range, 6);
-    p.mode = NurbsMode::Draft;
+    p.mode = mode;
     p
+}
+
+/// A quarter frustum narrowing upwards (radius 1 at z = 0, 0.9 at z = 1):
+/// every point's draft against +Z is atan(0.1) = 5.71°, its parametric
+/// normal pointing outwards and up.
+fn quarter_frustum() -> PreparedNurbs {
+    quarter_turn(1.0, 0.9, 1.0, false, NurbsMode::Draft)
 }
 
 /// Pixels of each draft class (positive, within, negative) by their hue.
@@ -493,31 +502,9 @@ fn draft_classes_follow_the_exact_angle_on_both_backends() {
 }
 
 /// A quarter cylinder of radius 1 about +Z, its parametric normal outwards
-/// (convex) or, with u reversed, inwards (concave, radius 1).
+/// (convex) or inwards (concave, radius 1).
 fn quarter_cylinder(inwards: bool) -> PreparedNurbs {
-    let w = std::f64::consts::FRAC_1_SQRT_2;
-    let mut pts = Vec::new();
-    for z in [0.0, 1.5] {
-        let mut row = vec![[1.0, 0.0, z, 1.0], [1.0, 1.0, z, w], [0.0, 1.0, z, 1.0]];
-        if inwards {
-            row.reverse();
-        }
-        pts.extend(row);
-    }
-    let s = hitex_core::nurbs::NurbsSurface::new(
-        2,
-        1,
-        3,
-        2,
-        vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
-        vec![0.0, 0.0, 1.0, 1.0],
-        pts,
-    )
-    .unwrap();
-    let range = [s.domain()];
-    let mut p = PreparedNurbs::new(vec![s], &range, 6);
-    p.mode = NurbsMode::Radius;
-    p
+    quarter_turn(1.0, 1.0, 1.5, inwards, NurbsMode::Radius)
 }
 
 /// Pixels of each radius class (tight, concave, convex or flat) by their hue.

@@ -423,15 +423,7 @@ mod tests {
 
     #[test]
     fn point_inversion_finds_the_closest_point() {
-        let w = std::f64::consts::FRAC_1_SQRT_2;
-        let mut pts = Vec::new();
-        for z in [0.0, 2.0] {
-            pts.push([1.0, 0.0, z, 1.0]);
-            pts.push([1.0, 1.0, z, w]);
-            pts.push([0.0, 1.0, z, 1.0]);
-        }
-        let s =
-            NurbsSurface::new(2, 1, 3, 2, vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0], vec![0.0, 0.0, 1.0, 1.0], pts).unwrap();
+        let s = crate::nurbs::surface::tests::quarter_cylinder();
         // a point at radius 1.5 on the 30° ray, height 0.8: 0.5 from the cylinder
         let t = 30f64.to_radians();
         let p = [1.5 * t.cos(), 1.5 * t.sin(), 0.8];
