@@ -151,20 +151,21 @@ pub fn linear_to_srgb(l: f32) -> f32 {
 }
 
 /// Linear light to an 8-bit sRGB code: `round(255 · linear_to_srgb(l))`,
-/// computed without `powf` (a 4096-entry guess refined against the exact
-/// decision thresholds, so the result is the correctly rounded code).
+/// computed without `powf`: a 4096-entry guess, then one step up or down
+/// against the exact decision thresholds, so the result is the correctly
+/// rounded code. One step is enough: the curve rises at most 0.8 codes
+/// across a guess cell (its steepest part, 12.92·255/4095), and rounding the
+/// index can only land in the neighbouring cell; a test checks every
+/// threshold and cell edge. No loop and no branch, so lane code vectorises it.
 #[inline]
 pub fn linear_to_srgb_u8(l: f32) -> u8 {
     let t = &*SRGB_ENCODE;
     let l = if l.is_nan() { 0.0 } else { l.clamp(0.0, 1.0) };
-    let mut c = t.guess[(l * (ENCODE_GUESSES - 1) as f32) as usize] as usize;
-    while c < 255 && l >= t.threshold[c + 1] {
-        c += 1;
-    }
-    while c > 0 && l < t.threshold[c] {
-        c -= 1;
-    }
-    c as u8
+    let g = t.guess[((l * (ENCODE_GUESSES - 1) as f32) as usize).min(ENCODE_GUESSES - 1)] as usize;
+    let up = (g < 255 && l >= t.threshold[(g + 1).min(255)]) as usize;
+    let c = g + up;
+    let down = (c > 0 && l < t.threshold[c]) as usize;
+    (c - down) as u8
 }
 
 /// Reference encoder with `powf`, for tests and tables.
@@ -246,5 +247,35 @@ mod tests {
     fn nan_encodes_to_black() {
         assert_eq!(linear_to_srgb_u8(f32::NAN), 0);
         assert_eq!(linear_to_srgb_u8(7.0), 255);
+    }
+
+    /// The one-step encoder equals a full search from the guess at every
+    /// decision threshold and guess-cell edge (±4 ulps) and on a dense sweep.
+    #[test]
+    fn one_step_from_the_guess_is_enough() {
+        let search = |l: f32| -> u8 {
+            let t = &*SRGB_ENCODE;
+            let l = if l.is_nan() { 0.0 } else { l.clamp(0.0, 1.0) };
+            let mut c = t.guess[(l * (ENCODE_GUESSES - 1) as f32) as usize] as usize;
+            while c < 255 && l >= t.threshold[c + 1] {
+                c += 1;
+            }
+            while c > 0 && l < t.threshold[c] {
+                c -= 1;
+            }
+            c as u8
+        };
+        let near = |x: f32| (-4i32..=4).map(move |k| f32::from_bits((x.to_bits() as i32 + k).max(0) as u32));
+        let mut points: Vec<f32> = Vec::new();
+        for th in SRGB_ENCODE.threshold {
+            points.extend(near(th));
+        }
+        for i in 0..ENCODE_GUESSES {
+            points.extend(near(i as f32 / (ENCODE_GUESSES - 1) as f32));
+        }
+        points.extend((0..=2_000_000).map(|i| i as f32 / 2_000_000.0));
+        for l in points {
+            assert_eq!(linear_to_srgb_u8(l), search(l), "at {l:e}");
+        }
     }
 }
