@@ -108,8 +108,9 @@ pub struct RenderArgs {
     /// Tessellation density per patch side (only places fragments).
     #[arg(long, default_value_t = 8)]
     pub density: u32,
-    /// Isophote bands over 180°.
-    #[arg(long, default_value_t = 12)]
+    /// Isophote bands over 180° (`--bands` is the older name; image commands
+    /// use `--bands` for colour channels).
+    #[arg(long = "isophotes", visible_alias = "bands", default_value_t = 12)]
     pub bands: u32,
     /// Zebra stripes over 180°.
     #[arg(long, default_value_t = 10)]
@@ -438,7 +439,7 @@ pub fn prepare(model: &NurbsModel, density: u32) -> PreparedNurbs {
 pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
     match cmd {
         NurbsCommand::Render(a) => {
-            for (flag, v) in [("--bands", a.bands), ("--stripes", a.stripes)] {
+            for (flag, v) in [("--isophotes", a.bands), ("--stripes", a.stripes)] {
                 if !(1..=1000).contains(&v) {
                     return Err(CliError::Input(format!("{flag} {v} must be in 1..=1000")));
                 }

@@ -119,8 +119,9 @@ pub struct RenderArgs {
     /// Which renderer to use.
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
     pub backend: Backend,
-    /// Show the MIP level chosen per pixel instead of the imagery.
-    #[arg(long)]
+    /// Show the MIP level chosen per pixel instead of the imagery (`--levels`
+    /// is the older name; `active-area --levels` counts levels).
+    #[arg(long = "show-levels", visible_alias = "levels")]
     pub levels: bool,
 }
 

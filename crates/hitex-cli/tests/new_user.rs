@@ -485,3 +485,27 @@ fn a_long_build_reports_progress_where_no_bar_can_show() {
     assert!(!String::from_utf8_lossy(&o.stderr).contains("maps ("));
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn one_flag_name_one_meaning() {
+    // --bands picks image channels in the terrain commands; the isophote count
+    // is --isophotes (the old name still works), the level view --show-levels
+    let d = tmp("flag-names");
+    let out = d.join("o.png");
+    let o_ = out.to_str().unwrap();
+    let dem = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/jacksboro_fault_dem.npz");
+    for args in [
+        vec!["nurbs", "render", "teapot", "--mode", "isophote", "--isophotes", "6"],
+        vec!["nurbs", "render", "teapot", "--mode", "isophote", "--bands", "6"],
+        vec!["terrain", "render", "--dem", dem, "--show-levels"],
+        vec!["terrain", "render", "--dem", dem, "--levels"],
+    ] {
+        let o = hitex(&[&args[..], &["--size", "48x32", "--backend", "cpu", "-o", o_][..]].concat());
+        assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+    }
+    let o = hitex(&["nurbs", "render", "teapot", "--isophotes", "0", "-o", o_]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(error_lines(&o).join("\n").contains("--isophotes 0 must be in 1..=1000"));
+    let help = hitex(&["nurbs", "render", "--help"]);
+    assert!(String::from_utf8_lossy(&help.stdout).contains("--isophotes"));
+}
