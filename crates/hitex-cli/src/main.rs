@@ -464,6 +464,27 @@ pub(crate) fn keep_going_on_closed_stdout() {
     }
 }
 
+/// A message as the user reads it: the operating system's error numbers
+/// (" (os error 2)"), which the standard library appends to its text and
+/// which say nothing the text does not, are left out.
+fn plain(m: &str) -> String {
+    let mut out = String::with_capacity(m.len());
+    let mut rest = m;
+    while let Some(i) = rest.find(" (os error ") {
+        let tail = &rest[i + " (os error ".len()..];
+        let digits = tail.bytes().take_while(u8::is_ascii_digit).count();
+        if digits > 0 && tail[digits..].starts_with(')') {
+            out.push_str(&rest[..i]);
+            rest = &tail[digits + 1..];
+        } else {
+            out.push_str(&rest[..i + 1]);
+            rest = &rest[i + 1..];
+        }
+    }
+    out.push_str(rest);
+    out
+}
+
 fn main() -> ExitCode {
     // `hitex … | head`: end quietly when the reader goes away, as every Unix
     // tool does, instead of panicking inside println!
@@ -489,16 +510,33 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(CliError::Input(m)) => {
-            eprintln!("hitex: error: {m}");
+            eprintln!("hitex: error: {}", plain(&m));
             ExitCode::from(2)
         }
         Err(CliError::Internal(m)) => {
-            eprintln!("hitex: internal error: {m}");
+            eprintln!("hitex: internal error: {}", plain(&m));
             ExitCode::from(1)
         }
         Err(CliError::Check(m)) => {
-            eprintln!("hitex: check failed: {m}");
+            eprintln!("hitex: check failed: {}", plain(&m));
             ExitCode::from(1)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::plain;
+
+    #[test]
+    fn os_error_numbers_are_left_out() {
+        assert_eq!(plain("a.igs: No such file or directory (os error 2)"), "a.igs: No such file or directory");
+        assert_eq!(
+            plain("cannot write o/x.png: No space left on device (os error 28); o/y.png: Read-only (os error 30)"),
+            "cannot write o/x.png: No space left on device; o/y.png: Read-only"
+        );
+        // text that only looks alike stays
+        assert_eq!(plain("a (os error x) b (os error 12"), "a (os error x) b (os error 12");
+        assert_eq!(plain("no error here"), "no error here");
     }
 }

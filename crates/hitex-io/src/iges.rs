@@ -17,11 +17,11 @@ pub const MAX_IGES_FILE_BYTES: u64 = 1 << 30;
 
 /// An IGES file that cannot be read.
 #[derive(Debug, Error)]
-#[error("{file}: {location}: {message}")]
+#[error("{file}: {}{message}", if location.is_empty() { String::new() } else { format!("{location}: ") })]
 pub struct IgesError {
     /// The file.
     pub file: String,
-    /// Line, directory entry or parameter record.
+    /// Line, directory entry or parameter record (empty for the file as a whole).
     pub location: String,
     /// What is wrong.
     pub message: String,
@@ -63,11 +63,11 @@ struct DirEntry {
 pub fn load_iges(path: &Path) -> Result<IgesModel, IgesError> {
     let file = path.display().to_string();
     let err = |loc: &str, m: String| IgesError { file: file.clone(), location: loc.to_string(), message: m };
-    let meta = std::fs::metadata(path).map_err(|e| err("file", e.to_string()))?;
+    let meta = std::fs::metadata(path).map_err(|e| err("", e.to_string()))?;
     if meta.len() > MAX_IGES_FILE_BYTES {
-        return Err(err("file", format!("{} bytes exceeds the {MAX_IGES_FILE_BYTES}-byte limit", meta.len())));
+        return Err(err("", format!("{} bytes exceeds the {MAX_IGES_FILE_BYTES}-byte limit", meta.len())));
     }
-    let bytes = std::fs::read(path).map_err(|e| err("file", e.to_string()))?;
+    let bytes = std::fs::read(path).map_err(|e| err("", e.to_string()))?;
     parse_iges(&String::from_utf8_lossy(&bytes), &file)
 }
 
@@ -293,7 +293,7 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
         model.warnings.push(format!("skipped {n} × entity {ty} ({what})"));
     }
     if model.surfaces.is_empty() {
-        return Err(err("file".into(), "no rational B-spline surface (entity 128) found".into()));
+        return Err(err(String::new(), "no rational B-spline surface (entity 128) found".into()));
     }
     Ok(model)
 }

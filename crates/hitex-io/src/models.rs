@@ -200,7 +200,11 @@ pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
                 Some("igs") | Some("iges") => {
                     let m = crate::iges::load_iges(p).map_err(|e| IoError::Format {
                         path: p.to_path_buf(),
-                        message: format!("{}: {}", e.location, e.message),
+                        message: if e.location.is_empty() {
+                            e.message
+                        } else {
+                            format!("{}: {}", e.location, e.message)
+                        },
                     })?;
                     Ok(from_iges(path, m))
                 }
