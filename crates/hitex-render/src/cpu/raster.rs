@@ -136,9 +136,9 @@ impl Target {
         let n = width as usize * height as usize;
         Self { width, height, color: vec![clear; n], depth: vec![1.0; n] }
     }
-    /// The colour buffer as bytes.
+    /// The colour buffer as bytes (the same allocation, not a copy).
     pub fn into_rgba(self) -> Vec<u8> {
-        bytemuck::cast_slice(&self.color).to_vec()
+        bytemuck::allocation::cast_vec(self.color)
     }
 }
 
