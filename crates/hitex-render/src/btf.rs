@@ -222,9 +222,10 @@ pub struct PreparedBtf {
     pub codebook: Codebook,
     /// BC1 blocks of the codebook (slice by slice), when compressed.
     pub bc1: Option<Vec<u8>>,
-    /// The codebook's texels decoded to linear RGB: the CPU twin's copy of
-    /// what the GPU's sRGB (and BC1) decoder feeds its filter.
-    pub linear: Vec<glam::Vec4>,
+    /// The codebook's texels decoded to linear RGB in 16-bit fixed point
+    /// ([`Codebook::linear_texels16`]): the CPU twin's copy of what the
+    /// GPU's sRGB (and BC1) decoder feeds its filter.
+    pub linear: Vec<u64>,
     /// The index map.
     pub index: IndexMap,
     /// The angular grid.
@@ -269,7 +270,7 @@ impl PreparedBtf {
             }
             None => None,
         };
-        let linear = codebook.linear_texels();
+        let linear = codebook.linear_texels16();
         Ok(Self {
             linear,
             id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),

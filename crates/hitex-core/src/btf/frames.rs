@@ -55,7 +55,7 @@ pub fn angles(p: Vec3, n: Vec3, u: Vec3, v: Vec3, pc: Vec3) -> (f32, f32) {
 /// acos on [−1, 1] to within 2·10⁻⁸ before rounding (Abramowitz & Stegun
 /// 4.4.46): the platform's `acosf` is a library call that dominated the
 /// per-pixel angle cost.
-#[inline]
+#[inline(always)]
 #[allow(clippy::excessive_precision)] // the published coefficients, as printed
 pub fn acos(x: f32) -> f32 {
     let x = x.clamp(-1.0, 1.0);

@@ -159,13 +159,36 @@ pub fn linear_to_srgb(l: f32) -> f32 {
 /// threshold and cell edge. No loop and no branch, so lane code vectorises it.
 #[inline]
 pub fn linear_to_srgb_u8(l: f32) -> u8 {
-    let t = &*SRGB_ENCODE;
-    let l = if l.is_nan() { 0.0 } else { l.clamp(0.0, 1.0) };
-    let g = t.guess[((l * (ENCODE_GUESSES - 1) as f32) as usize).min(ENCODE_GUESSES - 1)] as usize;
-    let up = (g < 255 && l >= t.threshold[(g + 1).min(255)]) as usize;
-    let c = g + up;
-    let down = (c > 0 && l < t.threshold[c]) as usize;
-    (c - down) as u8
+    SRGB_ENCODE.encode(l)
+}
+
+/// The tables of [`linear_to_srgb_u8`], for lane loops: fetch them once
+/// ([`srgb_encoder`]) and call [`SrgbEncoder::encode`] per lane, so that the
+/// loop holds no lazy-initialisation check and no bounds check.
+pub struct SrgbEncoder {
+    /// `threshold[c]`: smallest linear value that encodes to code `c` or more.
+    threshold: [f32; 256],
+    guess: [u8; ENCODE_GUESSES],
+}
+
+impl SrgbEncoder {
+    /// [`linear_to_srgb_u8`].
+    #[inline(always)]
+    pub fn encode(&self, l: f32) -> u8 {
+        // NaN → 0 (max returns the other operand), then [0, 1]
+        #[allow(clippy::manual_clamp)] // clamp would keep NaN
+        let l = l.max(0.0).min(1.0);
+        let g = self.guess[((l * (ENCODE_GUESSES - 1) as f32) as usize).min(ENCODE_GUESSES - 1)] as usize;
+        let up = (g < 255 && l >= self.threshold[(g + 1).min(255)]) as usize;
+        let c = (g + up).min(255);
+        let down = (c > 0 && l < self.threshold[c]) as usize;
+        (c - down) as u8
+    }
+}
+
+/// The encoder's tables (built on first use).
+pub fn srgb_encoder() -> &'static SrgbEncoder {
+    &SRGB_ENCODE
 }
 
 /// Reference encoder with `powf`, for tests and tables.
@@ -175,13 +198,7 @@ pub fn linear_to_srgb_u8_exact(l: f32) -> u8 {
 
 const ENCODE_GUESSES: usize = 4096;
 
-struct SrgbEncode {
-    /// `threshold[c]`: smallest linear value that encodes to code `c` or more.
-    threshold: [f32; 256],
-    guess: Vec<u8>,
-}
-
-static SRGB_ENCODE: LazyLock<SrgbEncode> = LazyLock::new(|| {
+static SRGB_ENCODE: LazyLock<SrgbEncoder> = LazyLock::new(|| {
     let mut threshold = [0.0f32; 256];
     for (c, th) in threshold.iter_mut().enumerate().skip(1) {
         // bisect the exact encoder's decision point between c − 1 and c
@@ -192,8 +209,11 @@ static SRGB_ENCODE: LazyLock<SrgbEncode> = LazyLock::new(|| {
         }
         *th = hi;
     }
-    let guess = (0..ENCODE_GUESSES).map(|i| linear_to_srgb_u8_exact(i as f32 / (ENCODE_GUESSES - 1) as f32)).collect();
-    SrgbEncode { threshold, guess }
+    let mut guess = [0u8; ENCODE_GUESSES];
+    for (i, g) in guess.iter_mut().enumerate() {
+        *g = linear_to_srgb_u8_exact(i as f32 / (ENCODE_GUESSES - 1) as f32);
+    }
+    SrgbEncoder { threshold, guess }
 });
 
 static SRGB_LUT: LazyLock<[f32; 256]> = LazyLock::new(|| {

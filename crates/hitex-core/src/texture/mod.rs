@@ -10,6 +10,8 @@ pub mod pyramid;
 pub mod sampler;
 pub mod span;
 
-pub use image::{ColorSpace, Image, linear_to_srgb, linear_to_srgb_u8, srgb_to_linear, srgb_u8_to_linear};
+pub use image::{
+    ColorSpace, Image, SrgbEncoder, linear_to_srgb, linear_to_srgb_u8, srgb_encoder, srgb_to_linear, srgb_u8_to_linear,
+};
 pub use pyramid::MipPyramid;
 pub use sampler::{Filter, Jacobian, LevelRule, SamplerOptions, Wrap, level_of_detail, sample};

@@ -7,15 +7,27 @@
 //! index map's four texels around T (4 index reads) with bilinear weights;
 //! per index texel the hexa-linear interpolation over the angles through the
 //! layout's reads ([`Codebook::corner`]); exposure, sRGB encoding.
+//!
+//! The program shades a rasterizer block of 16 lanes. The frame, both angle
+//! pairs, their grid neighbours, the layout's walked combinations and the
+//! filter's taps are lane vectors; the reads are gathers, one texel position
+//! for all lanes at a time, from the codebook decoded to 16-bit linear
+//! texels (one 64-bit word each, [`Codebook::linear_texels16`]). Every lane
+//! reads, with indices clamped into the texture, so the gathers need no
+//! branch; unlit and helper lanes are discarded afterwards. Taps of weight
+//! zero are read as the hardware filter reads them, so that the loops have
+//! the layout's fixed trip counts (combinations × taps = 16 per index texel).
 
-use super::raster::QuadShader;
-use crate::btf::{BtfFrame, BtfVertex, PreparedBtf};
-use glam::{Vec3, Vec4};
-use hitex_core::btf::frames::{V3x4, angles4};
-use hitex_core::btf::layout::{FetchSink, ReadCounter};
-use hitex_core::btf::{AngleLerps, Codebook, angles};
-use hitex_core::texture::linear_to_srgb_u8;
-use hitex_core::texture::sampler::floor;
+// lane loops index several arrays by the same lane, as the lane code reads
+#![allow(clippy::needless_range_loop)]
+
+use super::raster::{Block, BlockShader};
+use super::simd::{LANES, Lanes, V3, floor, lanes};
+use crate::btf::{BtfFrame, BtfVertex, MAX_RENDER_THETA, PreparedBtf};
+use glam::Vec3;
+use hitex_core::btf::frames::acos;
+use hitex_core::btf::layout::{Axis, FetchSink, LinearTexel, ReadCounter};
+use hitex_core::btf::{AngleLerps, AngularGrid, Codebook, angles};
 
 /// Varyings: world position (3), N (3), U (3), V (3), T (2).
 pub const VARYINGS: usize = 14;
@@ -32,6 +44,43 @@ pub struct BtfProgram<'a> {
     camera: Vec3,
     light: Vec3,
     exposure: f32,
+    reads: ReadShape,
+}
+
+/// What the layout fixes about every pixel's reads.
+struct ReadShape {
+    /// The angular axes walked with two neighbours each (2..6 = θc φc θl φl).
+    walk: [usize; 4],
+    nwalk: usize,
+    /// Filtered angular axes: 0 (texel loads), 1 … 3.
+    filtered: u32,
+    /// Per filter axis (tile x, tile y, layers): the angular axis it
+    /// carries (none for u, v or an unused axis), its extent in texels, the
+    /// texel offset of one step, and whether it wraps (φ layers).
+    filter_axes: [(Option<usize>, u32, u32, bool); 3],
+    u_on_x: bool,
+    v_on_y: bool,
+}
+
+impl ReadShape {
+    fn new(cb: &Codebook) -> Self {
+        let spec = cb.layout.spec();
+        let (walk, nwalk) = cb.layout.walked_axes();
+        let angle = |a: Axis| a.is_angle().then_some(a as usize);
+        let layer = cb.width * cb.height;
+        Self {
+            walk,
+            nwalk,
+            filtered: cb.layout.filtered_mask().count_ones(),
+            filter_axes: [
+                (angle(spec.tile_x), cb.tile_w, 1, false),
+                (angle(spec.tile_y), cb.tile_h, cb.width, false),
+                (spec.depth.and_then(angle), cb.depth, layer, spec.depth.is_some_and(|a| a.is_phi())),
+            ],
+            u_on_x: spec.tile_x == Axis::U,
+            v_on_y: spec.tile_y == Axis::V,
+        }
+    }
 }
 
 impl<'a> BtfProgram<'a> {
@@ -42,6 +91,7 @@ impl<'a> BtfProgram<'a> {
             camera: Vec3::new(frame.camera[0], frame.camera[1], frame.camera[2]),
             light: Vec3::new(frame.light[0], frame.light[1], frame.light[2]),
             exposure: frame.light[3],
+            reads: ReadShape::new(&scene.codebook),
         }
     }
 
@@ -96,60 +146,191 @@ impl<'a> BtfProgram<'a> {
         acc * self.exposure
     }
 
-    /// The four lanes of a quad in linear RGB: the same steps as
-    /// [`BtfProgram::shade_linear`], the per-pixel frame and both angle pairs
-    /// computed on SIMD lanes, the reads lane by lane. Lanes not in `live`
-    /// are left black.
-    pub fn shade_quad(&self, v: &[[f32; VARYINGS]; 4], live: u8) -> [Vec3; 4] {
-        let at = |i: usize| V3x4 {
-            x: Vec4::new(v[0][i], v[1][i], v[2][i], v[3][i]),
-            y: Vec4::new(v[0][i + 1], v[1][i + 1], v[2][i + 1], v[3][i + 1]),
-            z: Vec4::new(v[0][i + 2], v[1][i + 2], v[2][i + 2], v[3][i + 2]),
-        };
+    /// A block's 16 lanes in linear RGB (R, G, B lanes): the same steps as
+    /// [`BtfProgram::shade_linear`] on lane vectors — the per-pixel frame,
+    /// both angle pairs, their neighbours on the angular grid, the walked
+    /// combinations and the filter's taps — then per lane the reads. Lanes
+    /// not in `live` (and unlit ones) are left black.
+    #[inline(always)]
+    pub fn shade_lanes(&self, v: &[Lanes; VARYINGS], live: u16) -> [Lanes; 3] {
+        let at = |i: usize| V3 { x: v[i], y: v[i + 1], z: v[i + 2] };
         let p = at(0);
         // per-pixel frame; the normal faces the viewer
-        let mut n = at(3).normalize_or(Vec3::Z);
-        let u = at(6).normalize_or(Vec3::X);
-        let w = at(9).normalize_or(Vec3::Y);
-        let back = n.dot(V3x4::splat(self.camera) - p).cmplt(Vec4::ZERO);
-        n = V3x4::select(back, -n, n);
+        let n = normalize_or(&at(3), Vec3::Z);
+        let u = normalize_or(&at(6), Vec3::X);
+        let w = normalize_or(&at(9), Vec3::Y);
+        let to_cam = sub_from(self.camera, &p);
+        let ndc = n.dot(&to_cam);
+        let flip = lanes!(|i| if ndc[i] < 0.0 { -1.0 } else { 1.0 });
+        let n =
+            V3 { x: lanes!(|i| n.x[i] * flip[i]), y: lanes!(|i| n.y[i] * flip[i]), z: lanes!(|i| n.z[i] * flip[i]) };
         // light below the surface: no light
-        let lit = n.dot(V3x4::splat(self.light) - p).cmpgt(Vec4::ZERO).bitmask() as u8 & live;
-        // view and light angles
-        let (tc, pc) = angles4(p, n, u, w, self.camera);
-        let (tl, pl) = angles4(p, n, u, w, self.light);
+        let ndl = n.dot(&sub_from(self.light, &p));
+        let mut lit = 0u16;
+        for i in 0..LANES {
+            lit |= ((ndl[i] > 0.0) as u16) << i;
+        }
+        lit &= live;
+        let mut out = [[0.0; LANES]; 3];
+        if lit == 0 {
+            return out;
+        }
+        // view and light angles, their neighbouring samples (axes θc φc θl φl)
+        let (tc, pc) = angles_lanes(&p, &n, &u, &w, self.camera);
+        let (tl, pl) = angles_lanes(&p, &n, &u, &w, self.light);
         let g = &self.scene.grid;
-        let idx = &self.scene.index;
-        let cb: &Codebook = &self.scene.codebook;
-        let mut out = [Vec3::ZERO; 4];
-        for (lane, o) in out.iter_mut().enumerate() {
-            if lit & (1 << lane) == 0 {
-                continue;
-            }
-            let l = AngleLerps {
-                tc: g.lerp_theta(tc[lane]),
-                pc: g.lerp_phi(pc[lane]),
-                tl: g.lerp_theta(tl[lane]),
-                pl: g.lerp_phi(pl[lane]),
-            };
-            // index map: four texels around T, bilinear weights (4 index reads)
-            let (x0, x1, fx) = index_taps(v[lane][12], idx.width);
-            let (y0, y1, fy) = index_taps(v[lane][13], idx.height);
-            let plan = cb.plan(&l);
-            let mut a4 = Vec4::ZERO;
-            for (x, y, wgt) in [
-                (x0, y0, (1.0 - fx) * (1.0 - fy)),
-                (x1, y0, fx * (1.0 - fy)),
-                (x0, y1, (1.0 - fx) * fy),
-                (x1, y1, fx * fy),
-            ] {
-                let e = idx.get(x, y);
-                // hexa-linear over the angles through the layout's reads
-                a4 += cb.corner_planned_linear(&plan, e[0] as u32, e[1] as u32, &self.scene.linear) * wgt;
-            }
-            *o = a4.truncate() * self.exposure;
+        let l = [lerp_theta(g, &tc), lerp_phi(g, &pc), lerp_theta(g, &tl), lerp_phi(g, &pl)];
+        match (self.reads.nwalk, self.reads.filtered) {
+            (4, _) => self.read_lanes::<16, 1>(v, lit, &l, &mut out),
+            (3, _) => self.read_lanes::<8, 2>(v, lit, &l, &mut out),
+            (2, _) => self.read_lanes::<4, 4>(v, lit, &l, &mut out),
+            _ => self.read_lanes::<2, 8>(v, lit, &l, &mut out),
         }
         out
+    }
+
+    /// The reads of the lit lanes: per lane, four index texels, each the
+    /// `NC` walked combinations × the filter's `NT` taps of one sample
+    /// texel (taps of weight zero read too, as the hardware filter does).
+    #[inline(always)]
+    fn read_lanes<const NC: usize, const NT: usize>(
+        &self,
+        v: &[Lanes; VARYINGS],
+        lit: u16,
+        l: &[LaneLerp; 4],
+        out: &mut [Lanes; 3],
+    ) {
+        let r = &self.reads;
+        let cb: &Codebook = &self.scene.codebook;
+        // walked combinations: angular tile-index share and weight per lane
+        let mut ck = [[0u32; LANES]; NC];
+        let mut cw = [[1.0f32; LANES]; NC];
+        for c in 0..NC {
+            for (bit, &a) in r.walk[..r.nwalk].iter().enumerate() {
+                let ax = &l[a - 2];
+                let stride = cb.strides[a];
+                let hi = c & (1 << bit) != 0;
+                for i in 0..LANES {
+                    let (idx, wi) = if hi { (ax.i1[i], ax.t[i]) } else { (ax.i0[i], 1.0 - ax.t[i]) };
+                    ck[c][i] += idx * stride;
+                    cw[c][i] *= wi;
+                }
+            }
+        }
+        // the filter's taps inside a tile: texel offset and weight per lane
+        let mut to = [[0u32; LANES]; NT];
+        let mut tw = [[1.0f32; LANES]; NT];
+        let mut n = 1;
+        for (axis, extent, scale, wrap) in r.filter_axes {
+            let Some(a) = axis else { continue };
+            let ax = &l[a - 2];
+            let mut i0 = [0u32; LANES];
+            let mut i1 = [0u32; LANES];
+            let mut f = [0.0f32; LANES];
+            for i in 0..LANES {
+                let c = ax.coord[i];
+                let fl = floor(c);
+                f[i] = c - fl;
+                let k = (fl.max(0.0) as u32).min(extent - 1);
+                i0[i] = k;
+                // k < extent: wrapping is one comparison, not a division
+                i1[i] = if k + 1 < extent {
+                    k + 1
+                } else if wrap {
+                    0
+                } else {
+                    k
+                };
+            }
+            // taps so far take the first neighbour; their copies the second
+            for t in 0..n {
+                for i in 0..LANES {
+                    to[t + n][i] = to[t][i] + i1[i] * scale;
+                    tw[t + n][i] = tw[t][i] * f[i];
+                    to[t][i] += i0[i] * scale;
+                    tw[t][i] *= 1.0 - f[i];
+                }
+            }
+            n *= 2;
+        }
+        debug_assert_eq!(n, NT);
+        let idx = &self.scene.index;
+        // index map: four texels around T per lane, bilinear weights
+        let (x0, x1, fx) = index_taps_lanes(&v[12], idx.width);
+        let (y0, y1, fy) = index_taps_lanes(&v[13], idx.height);
+        let mut at = [[0u32; LANES]; 4];
+        let mut wgt = [[0.0f32; LANES]; 4];
+        for i in 0..LANES {
+            let (x0, x1, fx, y0, y1, fy) = (x0[i], x1[i], fx[i], y0[i], y1[i], fy[i]);
+            let (r0, r1) = (y0 * idx.width, y1 * idx.width);
+            at[0][i] = r0 + x0;
+            at[1][i] = r0 + x1;
+            at[2][i] = r1 + x0;
+            at[3][i] = r1 + x1;
+            wgt[0][i] = (1.0 - fx) * (1.0 - fy);
+            wgt[1][i] = fx * (1.0 - fy);
+            wgt[2][i] = (1.0 - fx) * fy;
+            wgt[3][i] = fx * fy;
+        }
+        let entries: &[u32] = bytemuck::cast_slice(&idx.entries);
+        let texels: &[u64] = &self.scene.linear;
+        if entries.is_empty() || texels.is_empty() {
+            return;
+        }
+        // indices clamped to the last element need no bounds check
+        let (last_entry, last_texel) = (entries.len() - 1, texels.len() - 1);
+        let width = cb.width;
+        let (tile_step, tile_w, cols) = (cb.tile_h * width, cb.tile_w, cb.tile_cols);
+        let inv_cols = 1.0 / cols as f64;
+        let (su_on_x, sv_on_y) = (r.u_on_x as u32, r.v_on_y as u32);
+        let mut acc = [[0.0f32; LANES]; 3];
+        // every lane reads (clamped indices), so that the reads are gathers
+        for q in 0..4 {
+            // the index texel: sample texel (su, sv) (one read)
+            let mut key = [0u32; LANES];
+            let mut shift = [0u32; LANES];
+            for i in 0..LANES {
+                let e = entries[(at[q][i] as usize).min(last_entry)];
+                let (su, sv) = (e & 0xffff, e >> 16);
+                key[i] = su * cb.strides[0] + sv * cb.strides[1];
+                shift[i] = sv * sv_on_y * width + su * su_on_x;
+            }
+            // hexa-linear over the angles through the layout's reads
+            let mut corner = [[0.0f32; LANES]; 3];
+            for c in 0..NC {
+                let mut base = [0u32; LANES];
+                for i in 0..LANES {
+                    let k = ck[c][i] + key[i];
+                    // k / cols, exact: the quotient is at least ½/cols from
+                    // an integer, far above the product's rounding
+                    let row = ((k as f64 + 0.5) * inv_cols) as u32;
+                    base[i] = row * tile_step + (k - row * cols) * tile_w + shift[i];
+                }
+                for t in 0..NT {
+                    let mut px = [0u64; LANES];
+                    for i in 0..LANES {
+                        px[i] = texels[((base[i] + to[t][i]) as usize).min(last_texel)];
+                    }
+                    for i in 0..LANES {
+                        let w = cw[c][i] * tw[t][i];
+                        corner[0][i] += (px[i] & 0xffff) as i32 as f32 * w;
+                        corner[1][i] += ((px[i] >> 16) & 0xffff) as i32 as f32 * w;
+                        corner[2][i] += ((px[i] >> 32) & 0xffff) as i32 as f32 * w;
+                    }
+                }
+            }
+            for ch in 0..3 {
+                for i in 0..LANES {
+                    acc[ch][i] += corner[ch][i] * wgt[q][i];
+                }
+            }
+        }
+        let scale = self.exposure * <u64 as LinearTexel>::UNIT;
+        for ch in 0..3 {
+            for i in 0..LANES {
+                out[ch][i] = if lit & (1 << i) != 0 { acc[ch][i] * scale } else { 0.0 };
+            }
+        }
     }
 
     /// Reads per fragment at these varyings (texture instructions, texels).
@@ -162,21 +343,209 @@ impl<'a> BtfProgram<'a> {
 
 /// The two index texels around texture coordinate `t` (index-map repeats)
 /// on a wrapping axis of `size` texels, and the weight of the second.
-#[inline]
+#[inline(always)]
 pub fn index_taps(t: f32, size: u32) -> (u32, u32, f32) {
     let t = if t.is_finite() { t.clamp(-1.0e6, 1.0e6) } else { 0.0 };
     let x = t * size as f32 - 0.5;
     let f0 = floor(x);
     let n = size as i64;
     let i0 = f0 as i64;
-    (i0.rem_euclid(n) as u32, (i0 + 1).rem_euclid(n) as u32, x - f0)
+    // inside the map (the common case) without a division
+    let wrap = |i: i64| if (0..n).contains(&i) { i } else { i.rem_euclid(n) };
+    (wrap(i0) as u32, wrap(i0 + 1) as u32, x - f0)
 }
 
-impl QuadShader<VARYINGS> for BtfProgram<'_> {
-    fn shade(&self, _material: usize, v: &[[f32; VARYINGS]; 4], _w: [f32; 4], live: u8) -> [[u8; 4]; 4] {
-        let c = self.shade_quad(v, live);
-        std::array::from_fn(|i| [linear_to_srgb_u8(c[i].x), linear_to_srgb_u8(c[i].y), linear_to_srgb_u8(c[i].z), 255])
+/// [`index_taps`] on lanes: the wrap by a float remainder with one
+/// correction each way (exact while |t·size| < 2²⁴); lanes beyond, where the
+/// float product itself is no longer exact, take the integer path.
+#[inline(always)]
+fn index_taps_lanes(t: &Lanes, size: u32) -> ([u32; LANES], [u32; LANES], Lanes) {
+    let n = size as f32;
+    let mut i0 = [0u32; LANES];
+    let mut i1 = [0u32; LANES];
+    let mut f = [0.0f32; LANES];
+    let mut far = false;
+    for i in 0..LANES {
+        let ti = if t[i].is_finite() { t[i].clamp(-1.0e6, 1.0e6) } else { 0.0 };
+        let x = ti * n - 0.5;
+        let f0 = floor(x);
+        far |= f0.abs() >= 16_777_216.0;
+        let mut r = f0 - n * floor(f0 / n);
+        r = if r < 0.0 { r + n } else { r };
+        r = if r >= n { r - n } else { r };
+        let k = (r as u32).min(size - 1);
+        i0[i] = k;
+        i1[i] = if k + 1 < size { k + 1 } else { 0 };
+        f[i] = x - f0;
     }
+    if far {
+        for i in 0..LANES {
+            (i0[i], i1[i], f[i]) = index_taps(t[i], size);
+        }
+    }
+    (i0, i1, f)
+}
+
+impl BlockShader<VARYINGS> for BtfProgram<'_> {
+    #[inline(always)]
+    fn shade_block(&self, b: &Block<VARYINGS>, rgba: &mut [[u8; 4]; LANES], _depth: &mut Lanes) {
+        let c = self.shade_lanes(&b.v, b.live);
+        let enc = hitex_core::texture::srgb_encoder();
+        let e = |x: f32| enc.encode(x);
+        for i in 0..LANES {
+            if b.live & (1 << i) != 0 {
+                rgba[i] = [e(c[0][i]), e(c[1][i]), e(c[2][i]), 255];
+            }
+        }
+    }
+}
+
+/// `pc − p` per lane.
+#[inline(always)]
+fn sub_from(pc: Vec3, p: &V3) -> V3 {
+    V3 { x: lanes!(|i| pc.x - p.x[i]), y: lanes!(|i| pc.y - p.y[i]), z: lanes!(|i| pc.z - p.z[i]) }
+}
+
+/// Lane-wise `normalize_or(fallback)` (as glam's: zero, infinite or NaN
+/// lengths take the fallback).
+#[inline(always)]
+fn normalize_or(v: &V3, fallback: Vec3) -> V3 {
+    let d = v.dot(v);
+    let mut o = V3::splat(fallback);
+    for i in 0..LANES {
+        let rcp = 1.0 / d[i].sqrt();
+        if rcp.is_finite() && rcp != 0.0 {
+            o.x[i] = v.x[i] * rcp;
+            o.y[i] = v.y[i] * rcp;
+            o.z[i] = v.z[i] * rcp;
+        }
+    }
+    o
+}
+
+/// [`hitex_core::btf::angles`] on a block's lanes (the steps of its
+/// four-lane twin `angles4`, in the same order).
+#[inline(always)]
+fn angles_lanes(p: &V3, n: &V3, u: &V3, v: &V3, pc: Vec3) -> (Lanes, Lanes) {
+    use std::f32::consts::{FRAC_PI_2, PI, TAU};
+    let c = sub_from(pc, p);
+    let len = lanes!(|i| (c.x[i] * c.x[i] + c.y[i] * c.y[i] + c.z[i] * c.z[i]).sqrt());
+    let c1 = V3 { x: lanes!(|i| c.x[i] / len[i]), y: lanes!(|i| c.y[i] / len[i]), z: lanes!(|i| c.z[i] / len[i]) };
+    // θ = acos(C′·N)
+    let s = c1.dot(n);
+    let theta = lanes!(|i| acos(s[i].clamp(-1.0, 1.0)));
+    // R = N × C′, φ = acos(U·R′) − π/2
+    let r = n.cross(&c1);
+    let rl = lanes!(|i| (r.x[i] * r.x[i] + r.y[i] * r.y[i] + r.z[i] * r.z[i]).sqrt());
+    let r1 = V3 { x: lanes!(|i| r.x[i] / rl[i]), y: lanes!(|i| r.y[i] / rl[i]), z: lanes!(|i| r.z[i] / rl[i]) };
+    let t = u.dot(&r1);
+    let sense = n.cross(u).dot(v);
+    let side = c1.dot(u);
+    let mut th = [0.0; LANES];
+    let mut ph = [0.0; LANES];
+    for i in 0..LANES {
+        let mut phi = acos(t[i].clamp(-1.0, 1.0)) - FRAC_PI_2;
+        // correction with V: sense of rotation, then the far half circle
+        if sense[i] < 0.0 {
+            phi = -phi;
+        }
+        if side[i] < 0.0 {
+            phi = PI - phi;
+        }
+        phi -= TAU * floor(phi / TAU);
+        // NaN fails every comparison: degenerate lanes take (0, 0)
+        let good = len[i] > 0.0 && len[i].is_finite() && !theta[i].is_nan();
+        let has_r = rl[i] > 1e-7 && !phi.is_nan();
+        th[i] = if good { theta[i] } else { 0.0 };
+        ph[i] = if good && has_r { phi } else { 0.0 };
+    }
+    (th, ph)
+}
+
+/// One angular axis's neighbours on a block's lanes ([`AxisLerp`] per lane).
+struct LaneLerp {
+    i0: [u32; LANES],
+    i1: [u32; LANES],
+    t: Lanes,
+    coord: Lanes,
+}
+
+/// [`AngularGrid::lerp_theta`] on lanes: the ring above is found by
+/// counting the rings at or below (the list is strictly increasing).
+#[inline(always)]
+fn lerp_theta(g: &AngularGrid, theta: &Lanes) -> LaneLerp {
+    let th = g.theta_deg();
+    let n = th.len();
+    let deg = lanes!(|i| if theta[i].is_finite() { theta[i].to_degrees() } else { 0.0 });
+    let mut count = [0u32; LANES];
+    for &r in th {
+        for i in 0..LANES {
+            count[i] += (r <= deg[i]) as u32;
+        }
+    }
+    let mut o = LaneLerp { i0: [0; LANES], i1: [0; LANES], t: [0.0; LANES], coord: [0.0; LANES] };
+    if n == 1 {
+        return o;
+    }
+    let last = (n - 1) as u32;
+    let (first, top) = (th[0], th[n - 1]);
+    // a fixed-size copy, so that the per-lane reads need no bounds check
+    let mut ring = [0.0f32; MAX_RENDER_THETA];
+    let m = n.min(MAX_RENDER_THETA);
+    ring[..m].copy_from_slice(&th[..m]);
+    for i in 0..LANES {
+        let i1 = count[i].clamp(1, last);
+        let i0 = i1 - 1;
+        let (a, b) = (ring[i0 as usize % MAX_RENDER_THETA], ring[i1 as usize % MAX_RENDER_THETA]);
+        let t = ((deg[i] - a) / (b - a)).clamp(0.0, 1.0);
+        // below the first ring: ring 0; at or above the last: the last
+        let below = deg[i] <= first;
+        let above = !below && deg[i] >= top;
+        o.i0[i] = if below {
+            0
+        } else if above {
+            last
+        } else {
+            i0
+        };
+        o.i1[i] = if below {
+            0
+        } else if above {
+            last
+        } else {
+            i1
+        };
+        o.t[i] = if below || above { 0.0 } else { t };
+        o.coord[i] = if below {
+            0.0
+        } else if above {
+            last as f32
+        } else {
+            i0 as f32 + t
+        };
+    }
+    o
+}
+
+/// [`AngularGrid::lerp_phi`] on lanes.
+#[inline(always)]
+fn lerp_phi(g: &AngularGrid, phi: &Lanes) -> LaneLerp {
+    let count = g.phi_count() as u32;
+    let n = count as f32;
+    let mut o = LaneLerp { i0: [0; LANES], i1: [0; LANES], t: [0.0; LANES], coord: [0.0; LANES] };
+    for i in 0..LANES {
+        let mut x = if phi[i].is_finite() { phi[i] / std::f32::consts::TAU * n } else { 0.0 };
+        x -= n * floor(x / n);
+        if x >= n {
+            x = 0.0;
+        }
+        let i0 = (floor(x) as u32).min(count - 1);
+        o.i0[i] = i0;
+        o.i1[i] = if i0 + 1 == count { 0 } else { i0 + 1 };
+        o.t[i] = (x - i0 as f32).clamp(0.0, 1.0);
+        o.coord[i] = x;
+    }
+    o
 }
 
 /// The fragments of `scene` seen by `camera` at `width`×`height`, in the

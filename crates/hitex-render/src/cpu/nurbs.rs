@@ -554,7 +554,8 @@ impl NurbsProgram<'_> {
                 // Blinn–Phong, the same steps as `lane`
                 let albedo = Vec3::new(0.72, 0.75, 0.80);
                 let amb = f.ranges[2];
-                let e = hitex_core::texture::linear_to_srgb_u8;
+                let enc = hitex_core::texture::srgb_encoder();
+                let e = |x: f32| enc.encode(x);
                 for lane in 0..LANES {
                     if b.live & (1 << lane) != 0 {
                         let k = amb + ndl[lane];
