@@ -74,6 +74,7 @@ fn axis(q: f32, bicubic: bool, o: i32, b: i32) -> Axis {
 
 impl Program<'_> {
     /// The ground point through pixel position (px, py), or None at and above the horizon.
+    #[inline(always)]
     fn ground(&self, px: f32, py: f32) -> Option<[f32; 2]> {
         let u = &self.u;
         let (w, h) = (u.sizes[0] as f32, u.sizes[1] as f32);
@@ -89,7 +90,7 @@ impl Program<'_> {
         (g[0].is_finite() && g[1].is_finite()).then_some(g)
     }
 
-    #[inline]
+    #[inline(always)]
     fn decode(&self, t: &[u8], i: usize) -> [f32; 4] {
         let Some(p) = t.get(i..i + 4) else { return [0.0; 4] };
         [self.lut[p[0] as usize], self.lut[p[1] as usize], self.lut[p[2] as usize], p[3] as f32 / 255.0]
@@ -97,7 +98,7 @@ impl Program<'_> {
 
     /// The map serving texel (tx, ty) of level z through the page table, and
     /// the shift from level z's texels to that map's: None where no data lies.
-    #[inline]
+    #[inline(always)]
     fn serving(&self, z: u32, tx: i32, ty: i32) -> Option<(&[u8], u32)> {
         let per = self.pages.per_side as i32;
         let (mut z, mut tx, mut ty, mut steps) = (z, tx, ty, 0u32);
@@ -121,6 +122,7 @@ impl Program<'_> {
     }
 
     /// Linear RGBA of texel (tx, ty) of level z through the page table.
+    #[inline(always)]
     fn texel(&self, z: u32, tx: i32, ty: i32) -> [f32; 4] {
         match self.serving(z, tx, ty) {
             Some((t, k)) => self.decode(t, ((((ty >> k) & 255) << 8 | ((tx >> k) & 255)) * 4) as usize),
@@ -128,6 +130,7 @@ impl Program<'_> {
         }
     }
 
+    #[inline(always)]
     fn bilinear(&self, z: u32, p: [f32; 2]) -> [f32; 4] {
         let s = (1u32 << (self.pages.levels - 1 - z)) as f32;
         let (x, y) = (p[0] / s - 0.5, p[1] / s - 0.5);
@@ -157,9 +160,11 @@ impl Program<'_> {
     }
 
     /// Eq. (2)–(4) at map point `p` with largest partial `foot` (finest texels per pixel).
+    #[inline(always)]
     fn trilinear(&self, p: [f32; 2], foot: f32) -> [f32; 4] {
         let levels = self.pages.levels;
-        let zf = ((levels - 1) as f32 - foot.max(1e-9).log2()).clamp(0.0, (levels - 1) as f32);
+        // the series log2 of the block programs (the platform's is a library call)
+        let zf = ((levels - 1) as f32 - super::simd::log2(foot.max(1e-9))).clamp(0.0, (levels - 1) as f32);
         let z0 = floor(zf) as u32;
         let z1 = (z0 + 1).min(levels - 1);
         let t = zf - z0 as f32;
@@ -319,11 +324,13 @@ impl Program<'_> {
     }
 
     /// Linear RGB of a flat-ground pixel from its texture colour.
+    #[inline(always)]
     fn over_ground(s: [f32; 4]) -> [f32; 3] {
         std::array::from_fn(|i| s[i] + GROUND[i] * (1.0 - s[3]))
     }
 
     /// Linear RGB of flat-ground pixel (px, py), per pixel.
+    #[inline(always)]
     fn shade_flat(&self, px: u32, py: u32) -> [f32; 3] {
         let (x, y) = (px as f32 + 0.5, py as f32 + 0.5);
         let (Some(p), Some(p1), Some(p2)) = (self.ground(x, y), self.ground(x + 1.0, y), self.ground(x, y + 1.0))
@@ -348,6 +355,7 @@ impl Program<'_> {
     }
 }
 
+#[inline(always)]
 fn lerp2(c: [[f32; 4]; 4], fx: f32, fy: f32) -> [f32; 4] {
     std::array::from_fn(|k| {
         let top = c[0][k] + (c[1][k] - c[0][k]) * fx;
@@ -358,6 +366,25 @@ fn lerp2(c: [[f32; 4]; 4], fx: f32, fy: f32) -> [f32; 4] {
 
 fn encode(c: [f32; 3]) -> [u8; 4] {
     [linear_to_srgb_u8(c[0]), linear_to_srgb_u8(c[1]), linear_to_srgb_u8(c[2]), 255]
+}
+
+/// One row of flat ground, per pixel (trilinear).
+struct FlatRow<'a, 'b> {
+    prog: &'a Program<'a>,
+    py: u32,
+    row: &'b mut [u8],
+}
+
+impl pulp::WithSimd for FlatRow<'_, '_> {
+    type Output = ();
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) {
+        let enc = hitex_core::texture::srgb_encoder();
+        for (px, o) in self.row.chunks_exact_mut(4).enumerate() {
+            let c = self.prog.shade_flat(px as u32, self.py);
+            o.copy_from_slice(&[enc.encode(c[0]), enc.encode(c[1]), enc.encode(c[2]), 255]);
+        }
+    }
 }
 
 /// The mesh fragment program: lanes (0,0) (1,0) (0,1) (1,1) of a quad;
@@ -470,11 +497,9 @@ pub fn render_fly_with(
             let prog = bind(u, pages, None)?;
             let mut rgba = vec![0u8; (w * h * 4) as usize];
             let banks = if sampler == FlySampler::Trilinear {
+                // each row compiled for the SIMD level in use
                 rgba.par_chunks_mut((w * 4) as usize).enumerate().for_each(|(py, row)| {
-                    for px in 0..w {
-                        let o = (px * 4) as usize;
-                        row[o..o + 4].copy_from_slice(&encode(prog.shade_flat(px, py as u32)));
-                    }
+                    super::simd::run(FlatRow { prog: &prog, py: py as u32, row });
                 });
                 None
             } else {
