@@ -497,6 +497,22 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
             height: h,
         })
         .collect();
+    if wrap == Wrap::Mirror {
+        // imagery has edges: past them the sampler mirrors it, which looks
+        // like terrain but is not; say where the flight leaves the image
+        let (iw, ih) = (pyr.width() as f64, pyr.height() as f64);
+        let inside = |p: [f64; 2]| (0.0..=iw).contains(&p[0]) && (0.0..=ih).contains(&p[1]);
+        match views.iter().position(|v| !inside(v.position)) {
+            Some(k) => eprintln!(
+                "hitex: warning: the flight leaves the {}x{} image at frame {} of {} (--step {step:.1} texels a frame); past its edges the imagery is mirrored, not real ground",
+                pyr.width(),
+                pyr.height(),
+                k + 1,
+                views.len()
+            ),
+            None => say!("past the image's edges (towards the horizon) the imagery is mirrored"),
+        }
+    }
     say!(
         "flight over {name}: {} {w}x{h}, altitude {altitude:.1} texels, pitch {}°, heading {}°, FOV {}°, {} levels",
         crate::count(a.frames as usize, "frame", "frames"),

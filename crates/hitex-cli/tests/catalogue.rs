@@ -121,6 +121,11 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
     let hb = w("ok.hbtf", include_bytes!("../../../fuzz/seeds/hbtf/knit-4.hbtf"));
     v.push(c(".hbtf", "valid, but beyond --max-memory 1K", &["--max-memory", "1K", "btf", "info", &hb]));
     v.push(c("--max-memory", "not a size", &["--max-memory", "lots", "btf", "info", &hb]));
+    v.push(c(
+        "STEP",
+        "a STEP part (not read yet)",
+        &["nurbs", "info", &w("part.stp", b"ISO-10303-21;\nHEADER;\nENDSEC;\nDATA;\nENDSEC;\nEND-ISO-10303-21;\n")],
+    ));
     v.push(c("IGES", "no such file", &["nurbs", "info", &s(&d.join("gone.igs"))]));
     v.push(c("GST store", "no metadata.json", &["terrain", "fly", &s(d), "-o", &s(&d.join("frames"))]));
     let store = d.join("store");

@@ -509,3 +509,25 @@ fn one_flag_name_one_meaning() {
     let help = hitex(&["nurbs", "render", "--help"]);
     assert!(String::from_utf8_lossy(&help.stdout).contains("--isophotes"));
 }
+
+#[test]
+fn a_flight_past_the_imagery_says_so() {
+    let d = tmp("mirror");
+    // a 64×64 image: imagery has edges, unlike the repeating patterns
+    let img = d.join("img.png");
+    let px: Vec<u8> = (0..64 * 64).flat_map(|i| [(i % 64 * 4) as u8, (i / 64 * 4) as u8, 90]).collect();
+    image::save_buffer(&img, &px, 64, 64, image::ColorType::Rgb8).unwrap();
+    let out = d.join("o.png");
+    let (i, o_) = (img.to_str().unwrap(), out.to_str().unwrap());
+    let base = ["terrain", "spans", "--image", i, "--size", "32x24", "--frames", "3", "-o", o_];
+    // 20 texels a frame from the centre: out of the image at the third frame
+    let o = hitex(&[&base[..], &["--step", "20"][..]].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let e = error_lines(&o).join("\n");
+    assert!(e.contains("warning: the flight leaves the 64x64 image at frame 3 of 3"), "{e}");
+    assert!(e.contains("mirrored, not real ground"), "{e}");
+    // a flight that stays inside is not warned about
+    let o = hitex(&[&base[..], &["--step", "5"][..]].concat());
+    assert!(o.status.success());
+    assert!(!error_lines(&o).iter().any(|l| l.contains("warning")), "{:?}", error_lines(&o));
+}

@@ -59,6 +59,51 @@ struct DirEntry {
     line: usize,
 }
 
+/// The IGES 5.3 name of an entity type, for messages.
+fn entity_name(ty: i64) -> &'static str {
+    match ty {
+        100 => "circular arc",
+        102 => "composite curve",
+        104 => "conic arc",
+        106 => "copious data",
+        108 => "plane",
+        110 => "line",
+        112 => "parametric spline curve",
+        114 => "parametric spline surface",
+        116 => "point",
+        118 => "ruled surface",
+        120 => "surface of revolution",
+        122 => "tabulated cylinder",
+        123 => "direction",
+        124 => "transformation matrix",
+        126 => "rational B-spline curve",
+        128 => "rational B-spline surface",
+        140 => "offset surface",
+        141 => "boundary",
+        142 => "curve on a parametric surface",
+        143 => "bounded surface",
+        144 => "trimmed surface",
+        186 => "manifold solid B-rep",
+        190 => "plane surface",
+        192 => "right circular cylindrical surface",
+        194 => "right circular conical surface",
+        196 => "spherical surface",
+        198 => "toroidal surface",
+        212 => "general note",
+        308 => "subfigure definition",
+        314 => "colour definition",
+        402 => "associativity instance",
+        406 => "property",
+        408 => "singular subfigure instance",
+        502 => "vertex list",
+        504 => "edge list",
+        508 => "loop",
+        510 => "face",
+        514 => "shell",
+        _ => "entity",
+    }
+}
+
 /// Reads an IGES file.
 pub fn load_iges(path: &Path) -> Result<IgesModel, IgesError> {
     let file = path.display().to_string();
@@ -285,7 +330,7 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
         kept.sort_by_key(|s| s.directory_entry);
         model.surfaces = kept;
     }
-    for (ty, n) in skipped {
+    for (&ty, n) in &skipped {
         let what = match ty {
             314 => "colour definition",
             _ => "unsupported entity",
@@ -293,7 +338,26 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
         model.warnings.push(format!("skipped {n} × entity {ty} ({what})"));
     }
     if model.surfaces.is_empty() {
-        return Err(err(String::new(), "no rational B-spline surface (entity 128) found".into()));
+        // say what the file holds instead, the commonest first
+        let mut count: std::collections::BTreeMap<i64, usize> = std::collections::BTreeMap::new();
+        for (entity, _, _) in &parsed {
+            *count.entry(*entity).or_default() += 1;
+        }
+        let mut held: Vec<(i64, usize)> = count.into_iter().collect();
+        held.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+        let list: Vec<String> =
+            held.iter().take(6).map(|&(ty, n)| format!("{n} × {ty} ({})", entity_name(ty))).collect();
+        let holds = if list.is_empty() {
+            "it holds no entities besides".to_string()
+        } else {
+            format!("it holds {}{}", list.join(", "), if held.len() > 6 { ", …" } else { "" })
+        };
+        return Err(err(
+            String::new(),
+            format!(
+                "no rational B-spline surface (entity 128) found: {holds}; hitex reads 128 surfaces, trimmed by 144/142"
+            ),
+        ));
     }
     Ok(model)
 }
@@ -627,6 +691,22 @@ mod tests {
         s += &par;
         s += &line(&format!("S{:>7}G{:>7}D{:>7}P{:>7}", 1, 1, 2 * entities.len(), pl - 1), 'T', 1);
         s
+    }
+
+    #[test]
+    fn a_file_without_surfaces_says_what_it_holds() {
+        let text = iges_file(&[
+            (110, "110,0.,0.,0.,1.,0.,0.;"),
+            (110, "110,1.,0.,0.,1.,1.,0.;"),
+            (116, "116,0.,0.,0.,0;"),
+            (186, "186,0,1,0;"),
+        ]);
+        let e = parse_iges(&text, "part.igs").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "part.igs: no rational B-spline surface (entity 128) found: it holds 2 × 110 (line), \
+             1 × 116 (point), 1 × 186 (manifold solid B-rep); hitex reads 128 surfaces, trimmed by 144/142"
+        );
     }
 
     /// A unit square trimmed by a circular hole of radius 0.3 at its centre.

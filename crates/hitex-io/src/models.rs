@@ -215,11 +215,13 @@ pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
                             message: format!("no such file, and not a model name ({})", MODEL_NAMES.join(", ")),
                         });
                     }
-                    Err(IoError::Format {
-                        path: p.to_path_buf(),
-                        message: "unsupported NURBS format (expected .igs, .iges, free-form .obj or hitex's .json)"
-                            .into(),
-                    })
+                    let message = match ext.as_deref() {
+                        Some("stp" | "step" | "p21") => "STEP (ISO 10303-21) is not read yet: export the part as IGES \
+                            with rational B-spline surfaces (entity 128, trimmed by 144), or as free-form OBJ"
+                            .to_string(),
+                        _ => "unsupported NURBS format (expected .igs, .iges, free-form .obj or hitex's .json)".into(),
+                    };
+                    Err(IoError::Format { path: p.to_path_buf(), message })
                 }
             }
         }
