@@ -154,15 +154,21 @@ pub fn wrap_index(i: i32, n: i32, wrap: Wrap) -> i32 {
     }
 }
 
-/// `floor`, inlined where the platform's `floorf` is a library call.
-/// Floats of magnitude ≥ 2²³ are integers already; NaN stays NaN.
+/// `floor`, inlined where the platform's `floorf` is a library call, in
+/// float operations only (no conversion to an integer, which vector code
+/// pays for in range fixups): adding and subtracting 2²³ rounds |t| to an
+/// integer, one step down corrects it. Floats of magnitude ≥ 2²³ are
+/// integers already; NaN stays NaN; the sign of zero is kept as `t as i32`
+/// would give it (+0 for −0).
 #[inline(always)]
 pub fn floor(t: f32) -> f32 {
-    if t.is_nan() || t.abs() >= 8_388_608.0 {
-        return t;
-    }
-    let i = t as i32 as f32;
-    if i > t { i - 1.0 } else { i }
+    const BIG: f32 = 8_388_608.0;
+    let a = t.abs();
+    let r = (a + BIG) - BIG;
+    let r = if t < 0.0 { -r } else { r };
+    let f = if r > t { r - 1.0 } else { r };
+    // NaN fails the comparison and is returned as it came
+    if a < BIG { f } else { t }
 }
 
 fn nearest(pyr: &MipPyramid, wrap: Wrap, uv: Vec2) -> Vec4 {
@@ -291,6 +297,21 @@ mod tests {
             assert_eq!(floor(t), t.floor(), "{t}");
         }
         assert!(floor(f32::NAN).is_nan());
+        assert_eq!(floor(f32::NEG_INFINITY), f32::NEG_INFINITY);
+        // halves (rounding to even must not leak through), neighbours of
+        // integers and of 2²³, and a sweep, all equal to the library floor
+        let mut ts =
+            vec![0.49999997f32, -0.49999997, 1.5, 2.5, -1.5, -2.5, 8388606.5, -8388606.5, 8388608.0, 16777215.0];
+        for k in -2000..2000 {
+            ts.push(k as f32 * 0.37 + 0.001 * (k % 7) as f32);
+            let i = k as f32 * 4099.0;
+            ts.extend([i, f32::from_bits(i.to_bits() + 1), f32::from_bits(i.to_bits().saturating_sub(1))]);
+        }
+        for t in ts {
+            assert_eq!(floor(t), t.floor(), "{t}");
+        }
+        // −0 gives +0 (as the integer round trip did); the lane code relies on no sign
+        assert_eq!(floor(-0.0).to_bits(), 0.0f32.to_bits());
     }
 
     #[test]
