@@ -174,6 +174,7 @@ impl Program<'_> {
     }
 
     /// Texel (tx, ty) of level k of the generic texture, repeating.
+    #[inline(always)]
     fn generic_texel(&self, k: u32, tx: i32, ty: i32) -> [f32; 4] {
         let n = (self.u.params[3] >> k).max(1) as i32;
         let (x, y) = (tx.rem_euclid(n) as usize, ty.rem_euclid(n) as usize);
@@ -181,6 +182,7 @@ impl Program<'_> {
     }
 
     /// Trilinear from the generic texture at level-0 texel position `p`.
+    #[inline(always)]
     fn generic(&self, p: [f32; 2], foot: f32) -> [f32; 4] {
         if self.generic.is_empty() {
             return [1.0; 4];
@@ -209,6 +211,7 @@ impl Program<'_> {
     }
 
     /// Filters lane `me` of a span at finest-numbered level `k` (virtual above the coarsest).
+    #[inline(always)]
     fn span_level(
         &self,
         pts: &[Option<[f32; 2]>; 4],
@@ -274,6 +277,7 @@ impl Program<'_> {
     }
 
     /// The span sampler over the four points of a span (None: no ground there).
+    #[inline(always)]
     fn span(
         &self,
         pts: [Option<[f32; 2]>; 4],
@@ -343,6 +347,7 @@ impl Program<'_> {
     }
 
     /// Linear RGB of the flat-ground span whose top-left pixel is (px, py).
+    #[inline(always)]
     fn shade_flat_span(&self, px: u32, py: u32, banks: Option<&mut BankModel>) -> [[f32; 3]; 4] {
         let pts: [Option<[f32; 2]>; 4] = std::array::from_fn(|i| {
             self.ground((px + (i as u32 & 1)) as f32 + 0.5, (py + (i as u32 >> 1)) as f32 + 0.5)
@@ -383,6 +388,35 @@ impl pulp::WithSimd for FlatRow<'_, '_> {
         for (px, o) in self.row.chunks_exact_mut(4).enumerate() {
             let c = self.prog.shade_flat(px as u32, self.py);
             o.copy_from_slice(&[enc.encode(c[0]), enc.encode(c[1]), enc.encode(c[2]), 255]);
+        }
+    }
+}
+
+/// Two rows of flat ground, span by span (2×2 pixels).
+struct FlatSpanRows<'a, 'b> {
+    prog: &'a Program<'a>,
+    py: u32,
+    pair: &'b mut [u8],
+    banks: Option<&'b mut BankModel>,
+}
+
+impl pulp::WithSimd for FlatSpanRows<'_, '_> {
+    type Output = ();
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) {
+        let FlatSpanRows { prog, py, pair, mut banks } = self;
+        let enc = hitex_core::texture::srgb_encoder();
+        let w = prog.u.sizes[0];
+        let two = pair.len() > (w * 4) as usize;
+        for sx in 0..w.div_ceil(2) {
+            let c = prog.shade_flat_span(sx * 2, py, banks.as_deref_mut());
+            for (i, c) in c.iter().enumerate() {
+                let (x, y) = (sx * 2 + (i as u32 & 1), i as u32 >> 1);
+                if x < w && (y == 0 || two) {
+                    let o = ((y * w + x) * 4) as usize;
+                    pair[o..o + 4].copy_from_slice(&[enc.encode(c[0]), enc.encode(c[1]), enc.encode(c[2]), 255]);
+                }
+            }
         }
     }
 }
@@ -510,18 +544,13 @@ pub fn render_fly_with(
                     .enumerate()
                     .map(|(sy, pair)| {
                         let mut m = BankModel::new(scheme);
-                        let py = sy as u32 * 2;
-                        let two = pair.len() > (w * 4) as usize;
-                        for sx in 0..w.div_ceil(2) {
-                            let c = prog.shade_flat_span(sx * 2, py, stats.then_some(&mut m));
-                            for (i, c) in c.iter().enumerate() {
-                                let (x, y) = (sx * 2 + (i as u32 & 1), i as u32 >> 1);
-                                if x < w && (y == 0 || two) {
-                                    let o = ((y * w + x) * 4) as usize;
-                                    pair[o..o + 4].copy_from_slice(&encode(*c));
-                                }
-                            }
-                        }
+                        // each row pair compiled for the SIMD level in use
+                        super::simd::run(FlatSpanRows {
+                            prog: &prog,
+                            py: sy as u32 * 2,
+                            pair,
+                            banks: stats.then_some(&mut m),
+                        });
                         m
                     })
                     .reduce(
