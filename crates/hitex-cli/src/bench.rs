@@ -4,10 +4,10 @@
 //! `{"bench": NAME, "rows": [{"case", "backend", "adapter", "width", "height",
 //! "frames", "ms_median", "fps_median"}], "ratios": [...], "parity": [...]}`.
 
-use crate::{AnyRenderer, CliError, parse_size};
+use crate::{CliError, open_renderer, parse_size};
 use hitex_core::scene::{Scene, showcase_scene};
 use hitex_core::texture::Filter;
-use hitex_render::{BackendChoice, PreparedScene, compare_rgba};
+use hitex_render::{AnyRenderer, BackendChoice, Job, PreparedScene, Renderer, compare_rgba};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 #[allow(unused_imports)]
@@ -127,9 +127,17 @@ fn progress(total: u64, quiet: bool) -> ProgressBar {
     pb
 }
 
-/// A benchmark case: renders frame `i` of `n` at `w`×`h` (the camera orbits once over the frames).
-pub type CaseFn<'a> =
-    Box<dyn Fn(&mut AnyRenderer, u32, u32, u32, u32) -> Result<hitex_render::Frame, hitex_render::RenderError> + 'a>;
+/// A benchmark case: the job of frame `i` of `n` at `w`×`h` (the camera
+/// orbits once over the frames), rendered the same way on every backend.
+pub type CaseFn<'a> = Box<dyn Fn(u32, u32, u32, u32) -> Result<Job<'a>, CliError> + 'a>;
+
+/// The case of a prepared content seen by a camera orbiting once.
+pub fn orbit_case<'a>(
+    camera: hitex_core::scene::Camera,
+    job: impl Fn(hitex_core::scene::Camera) -> Job<'a> + 'a,
+) -> CaseFn<'a> {
+    Box::new(move |i, k, _, _| Ok(job(camera.orbit(std::f32::consts::TAU * i as f32 / k as f32))))
+}
 
 /// Runs `cases` on the chosen backends: a warm-up frame, then `frames` timed
 /// frames orbiting the camera once; compares the first frame of both backends.
@@ -145,13 +153,7 @@ pub fn run_cases(
         cases.iter().map(|(n, s)| (n.clone(), PreparedScene::new(s))).collect();
     let fns: Vec<(String, CaseFn)> = prepared
         .iter()
-        .map(|(n, p)| {
-            let f: CaseFn = Box::new(move |r: &mut AnyRenderer, i: u32, k: u32, w: u32, h: u32| {
-                let cam = p.camera.orbit(std::f32::consts::TAU * i as f32 / k as f32);
-                r.render(p, &cam, w, h)
-            });
-            (n.clone(), f)
-        })
+        .map(|(n, p)| (n.clone(), orbit_case(p.camera, move |camera| Job::Scene { scene: p, camera })))
         .collect();
     run_case_fns(name, &fns, frames, size, which, quiet)
 }
@@ -167,10 +169,10 @@ pub fn run_case_fns(
 ) -> Result<Report, CliError> {
     let mut backends: Vec<(&str, AnyRenderer)> = Vec::new();
     if which != Backends::Gpu {
-        backends.push(("cpu", AnyRenderer::open(BackendChoice::Cpu)?));
+        backends.push(("cpu", open_renderer(BackendChoice::Cpu)?));
     }
     if which != Backends::Cpu {
-        match AnyRenderer::open(BackendChoice::Gpu) {
+        match open_renderer(BackendChoice::Gpu) {
             Ok(g) => backends.push(("gpu", g)),
             Err(CliError::Internal(m)) | Err(CliError::Input(m)) if which == Backends::Both => {
                 eprintln!("hitex bench: GPU backend skipped: {m}");
@@ -181,18 +183,18 @@ pub fn run_case_fns(
     let frames = frames.max(1);
     let mut rows = Vec::new();
     let mut parity = Vec::new();
-    for (case, render) in cases {
+    for (case, job) in cases {
         let mut first_frames = Vec::new();
         for (kind, r) in backends.iter_mut() {
             let pb = progress(frames as u64, quiet);
             pb.set_prefix(format!("{case} {kind}"));
             // warm-up: uploads, shader compilation, caches
-            let f0 = render(r, 0, frames, w, h)?;
+            let f0 = r.render(&job(0, frames, w, h)?, w, h)?.frame;
             first_frames.push(f0);
             let mut times = Vec::new();
             for i in 0..frames {
                 let t = Instant::now();
-                let f = render(r, i, frames, w, h)?;
+                let f = r.render(&job(i, frames, w, h)?, w, h)?;
                 times.push(t.elapsed().as_secs_f64() * 1e3);
                 std::hint::black_box(&f);
                 pb.inc(1);
@@ -378,13 +380,7 @@ pub fn nurbs(args: NurbsArgs) -> Result<(), CliError> {
     }
     let fns: Vec<(String, CaseFn)> = prepared
         .iter()
-        .map(|(n, p)| {
-            let f: CaseFn = Box::new(move |r: &mut AnyRenderer, i: u32, k: u32, w: u32, h: u32| {
-                let cam = p.camera.orbit(std::f32::consts::TAU * i as f32 / k as f32);
-                r.render_nurbs(p, &cam, w, h)
-            });
-            (n.clone(), f)
-        })
+        .map(|(n, p)| (n.clone(), orbit_case(p.camera, move |camera| Job::Nurbs { model: p, camera })))
         .collect();
     if !args.json {
         println!(

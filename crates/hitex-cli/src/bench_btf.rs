@@ -6,7 +6,7 @@
 
 use crate::bench::{Backends, CaseFn, Report, median, print_table, run_case_fns};
 use crate::btf_cmd::{index_with_progress, synth_with_progress};
-use crate::{AnyRenderer, CliError, parse_size};
+use crate::{CliError, parse_size};
 use glam::Vec3;
 use hitex_core::btf::cache::{CacheConfig, CacheModel};
 use hitex_core::btf::synth::{Material, SynthOptions};
@@ -246,9 +246,8 @@ pub fn btf(args: BtfArgs) -> Result<(), CliError> {
             load_efficiency: 0.0,
         });
         // timing on both backends
-        let f: CaseFn = Box::new(|r: &mut AnyRenderer, i: u32, k: u32, w: u32, h: u32| {
-            r.render_btf(&prepared, &camera, light_at(i, k), w, h)
-        });
+        let f: CaseFn =
+            Box::new(|i, k, _, _| Ok(hitex_render::Job::Btf { surface: &prepared, camera, light: light_at(i, k) }));
         if !quiet {
             eprintln!("{name}: prepared in {prep_ms:.0} ms");
         }

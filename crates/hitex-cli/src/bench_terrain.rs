@@ -6,7 +6,7 @@
 
 use crate::bench::{Backends, CaseFn, Report, print_table, run_case_fns};
 use crate::terrain_store_cmd::{PathKey, camera_at, frame_setup, open_cache};
-use crate::{AnyRenderer, CliError, parse_size};
+use crate::{CliError, parse_size};
 use glam::DVec2;
 use hitex_core::texture::span::{BankModel, RgbaFrame, psnr, ssim};
 use hitex_io::gst::{BuildOptions, ProceduralSource, StoreMeta, TILE, TileSource, build_store};
@@ -129,13 +129,18 @@ pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
     // one case per sampler, the same frames through the same page tables on both backends
     let case = |sampler: FlySampler| -> CaseFn {
         let (cache, meta, key) = (&cache, &meta, &key);
-        Box::new(move |r: &mut AnyRenderer, i: u32, _k: u32, w: u32, h: u32| {
+        Box::new(move |i, _k, w, h| {
             let mut start = Instant::now();
             let cam = camera_at(&key(i), meta, extent, 45.0);
             let (_, u, pages) =
                 frame_setup(&mut cache.borrow_mut(), meta, &cam, (w, h), 45.0, per_side, false, &mut start);
             // rendering only: the bank traffic is measured below
-            r.render_fly(&u.with_sampler(sampler), &pages, FlyGround::Flat, false).map(|f| f.0)
+            Ok(hitex_render::Job::Flight {
+                uniform: u.with_sampler(sampler),
+                pages: std::borrow::Cow::Owned(pages),
+                ground: FlyGround::Flat,
+                stats: false,
+            })
         })
     };
     let cases: Vec<(String, CaseFn)> = FlySampler::ALL.iter().map(|&s| (s.name().to_string(), case(s))).collect();

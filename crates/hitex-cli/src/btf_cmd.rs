@@ -1,6 +1,6 @@
 //! `hitex btf …`: synthesise, inspect, import, export and render BTFs.
 
-use crate::{AnyRenderer, Backend, CliError, parse_size, save};
+use crate::{Backend, CliError, open_renderer, parse_size, render_frame, save};
 use clap::{Subcommand, ValueEnum};
 use glam::Vec3;
 use hitex_core::btf::index::{IndexMap, SynthesisOptions, features, seam_quality, synthesize_index};
@@ -9,6 +9,7 @@ use hitex_core::btf::{AngularGrid, Btf, Layout};
 use hitex_core::scene::Camera;
 use hitex_core::texture::bc1::Bc1Encoder;
 use hitex_render::btf::{BtfSurface, PreparedBtf};
+use hitex_render::{Job, Renderer};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -524,9 +525,9 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             let t = Instant::now();
             let prepared = PreparedBtf::new(&btf, layout, bc1.then_some(Bc1Encoder::Ispc), map, surface)?;
             let prep_ms = t.elapsed().as_secs_f64() * 1e3;
-            let mut r = AnyRenderer::open(backend.into())?;
+            let mut r = open_renderer(backend.into())?;
             let t = Instant::now();
-            let frame = r.render_btf(&prepared, &camera, light, size.0, size.1)?;
+            let frame = render_frame(&mut r, &Job::Btf { surface: &prepared, camera, light }, size)?;
             let ms = t.elapsed().as_secs_f64() * 1e3;
             save(&frame, &output)?;
             println!(

@@ -1,8 +1,9 @@
 //! `hitex demo`: the embedded showcase.
 
-use crate::{AnyRenderer, CliError, save};
+use crate::{CliError, open_renderer, render_frame, save};
 use hitex_core::scene::{RenderMode, Scene, showcase_scene};
 use hitex_core::texture::{Filter, LevelRule};
+use hitex_render::{AnyRenderer, Job, Renderer};
 use hitex_render::{BackendChoice, Frame, PreparedScene};
 use std::path::Path;
 use std::time::Instant;
@@ -75,7 +76,7 @@ fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) ->
         let light = light_for(&surface, true, 35.0, 40.0);
         let p = PreparedBtf::new(&btf, Layout::F, None, index.clone(), surface)?;
         let t = Instant::now();
-        panels.push(r.render_btf(&p, &cam, light, side, side)?);
+        panels.push(render_frame(r, &Job::Btf { surface: &p, camera: cam, light }, (side, side))?);
         ms_sum += t.elapsed().as_secs_f64() * 1e3;
         if m == Material::Corduroy {
             corduroy = Some((btf, index));
@@ -97,7 +98,11 @@ fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) ->
     let mut ms_sum = 0.0;
     for az in [-150.0, -63.0, 20.0] {
         let t = Instant::now();
-        panels.push(r.render_btf(&p, &cam, light_for(&teapot, false, az, 45.0), pw, ph)?);
+        panels.push(render_frame(
+            r,
+            &Job::Btf { surface: &p, camera: cam, light: light_for(&teapot, false, az, 45.0) },
+            (pw, ph),
+        )?);
         ms_sum += t.elapsed().as_secs_f64() * 1e3;
     }
     report("btf-teapot.png", "BTF corduroy on the NURBS teapot, light moving round", &side_by_side(&panels), ms_sum)?;
@@ -111,7 +116,7 @@ fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) ->
     for (layout, bc1) in [(Layout::A, false), (Layout::F, false), (Layout::F, true)] {
         let p = PreparedBtf::new(&btf, layout, bc1.then_some(Bc1Encoder::Ispc), index.clone(), quad.clone())?;
         let t = Instant::now();
-        panels.push(r.render_btf(&p, &cam, light, side, side)?);
+        panels.push(render_frame(r, &Job::Btf { surface: &p, camera: cam, light }, (side, side))?);
         ms_sum += t.elapsed().as_secs_f64() * 1e3;
     }
     panels.push(diff_x8(&panels[0], &panels[2]));
@@ -226,7 +231,7 @@ fn terrain_showcase(
 /// Renders the showcase images into `out`.
 pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(), CliError> {
     hitex_io::create_output_dir(out)?;
-    let mut r = AnyRenderer::open(backend)?;
+    let mut r = open_renderer(backend)?;
     println!("hitex demo: rendering with {}", r.name());
     let base = showcase_scene();
     let mut total = 0.0;
@@ -234,7 +239,7 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
     let mut render = |scene: &Scene, w: u32, h: u32| -> Result<(Frame, f64), CliError> {
         let p = PreparedScene::new(scene);
         let t = Instant::now();
-        let f = r.render(&p, &p.camera, w, h)?;
+        let f = render_frame(&mut r, &Job::Scene { scene: &p, camera: p.camera }, (w, h))?;
         Ok((f, t.elapsed().as_secs_f64() * 1e3))
     };
     let mut report = |name: &str, what: &str, f: &Frame, ms: f64| -> Result<(), CliError> {
@@ -311,7 +316,7 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
             p.camera.orbit(turn)
         };
         let t = Instant::now();
-        let mut f = r.render_nurbs(&p, &cam, side, side)?;
+        let mut f = render_frame(&mut r, &Job::Nurbs { model: &p, camera: cam }, (side, side))?;
         let ms = t.elapsed().as_secs_f64() * 1e3;
         crate::nurbs_cmd::mode_legend(&mut f, &p, false);
         Ok((f, ms))
@@ -352,7 +357,7 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
         let view = hitex_render::nurbs::ModelView::default();
         let cam = p.view_camera(&view, 1.0, crate::nurbs_cmd::view_window(side, side, true));
         let t = Instant::now();
-        let mut f = r.render_nurbs(&p, &cam, side, side)?;
+        let mut f = render_frame(&mut r, &Job::Nurbs { model: &p, camera: cam }, (side, side))?;
         let ms = t.elapsed().as_secs_f64() * 1e3;
         crate::nurbs_cmd::mode_legend(&mut f, &p, false);
         Ok((f, ms))

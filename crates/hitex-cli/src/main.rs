@@ -22,7 +22,7 @@ mod view;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use hitex_core::scene::RenderMode;
-use hitex_render::{BackendChoice, CpuRenderer, Frame, GpuRenderer, PreparedScene, RenderError};
+use hitex_render::{AnyRenderer, BackendChoice, Frame, Job, OpenOptions, PreparedScene, RenderError, Renderer};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -189,149 +189,29 @@ impl From<RenderError> for CliError {
     }
 }
 
-/// One of the two backends, chosen at run time.
-pub enum Engine {
-    /// CPU reference renderer.
-    Cpu(CpuRenderer),
-    /// wgpu renderer.
-    Gpu(Box<GpuRenderer>),
+/// Opens the backend of a command: `auto` takes a hardware GPU or the CPU
+/// backend (`HITEX_SOFTWARE_GPU=1` lets it take a software adapter), and
+/// what the library notices (a GPU that failed, the CPU taking over) goes
+/// to stderr. `HITEX_GPU_FAULT=device-lost` destroys the GPU device right
+/// after it opens, as a driver reset would (for testing the fallback paths).
+pub fn open_renderer(choice: BackendChoice) -> Result<AnyRenderer, CliError> {
+    let options = OpenOptions {
+        software_for_auto: std::env::var_os("HITEX_SOFTWARE_GPU").is_some(),
+        lose_device: std::env::var("HITEX_GPU_FAULT").is_ok_and(|f| f == "device-lost"),
+    };
+    let mut r = AnyRenderer::open_with(choice, options).map_err(|e| match e {
+        hitex_render::GpuError::NoAdapter => {
+            CliError::Input(format!("--backend gpu: {e}; --backend cpu or auto render without one"))
+        }
+        e => CliError::Internal(e.to_string()),
+    })?;
+    r.on_notice(|n| eprintln!("hitex: {n}"));
+    Ok(r)
 }
 
-/// The renderer of a command: the backend asked for, and with `auto` the
-/// CPU backend taking over when the GPU fails (no adapter, device lost, out
-/// of memory, hang), saying so once on stderr.
-pub struct AnyRenderer {
-    backend: Engine,
-    auto: bool,
-    /// Why `auto` chose the CPU backend.
-    note: Option<String>,
-}
-
-impl AnyRenderer {
-    /// Opens the requested backend; `auto` falls back to the CPU and says so on stderr.
-    ///
-    /// `HITEX_GPU_FAULT=device-lost` destroys the GPU device right after it
-    /// opens, as a driver reset would (for testing the fallback paths).
-    pub fn open(choice: BackendChoice) -> Result<Self, CliError> {
-        // `auto` takes a hardware GPU only: on a software rasterizer the CPU
-        // backend is faster (HITEX_SOFTWARE_GPU=1 lets auto take one anyway)
-        let software_ok = choice != BackendChoice::Auto || std::env::var_os("HITEX_SOFTWARE_GPU").is_some();
-        let gpu = || -> Result<GpuRenderer, hitex_render::GpuError> {
-            let g = if software_ok { GpuRenderer::new()? } else { GpuRenderer::hardware()? };
-            if std::env::var("HITEX_GPU_FAULT").is_ok_and(|f| f == "device-lost") {
-                g.context().lose_device();
-            }
-            Ok(g)
-        };
-        let mut note = None;
-        let backend = match choice {
-            BackendChoice::Cpu => Engine::Cpu(CpuRenderer::new()),
-            BackendChoice::Gpu => Engine::Gpu(Box::new(gpu().map_err(|e| match e {
-                hitex_render::GpuError::NoAdapter => {
-                    CliError::Input(format!("--backend gpu: {e}; --backend cpu or auto render without one"))
-                }
-                e => CliError::Internal(e.to_string()),
-            })?)),
-            BackendChoice::Auto => match gpu() {
-                Ok(g) => Engine::Gpu(Box::new(g)),
-                Err(hitex_render::GpuError::SoftwareOnly(_)) => {
-                    // said in the renderer's name, which every command prints
-                    note = Some("auto: no hardware GPU, and the software one is slower".to_string());
-                    Engine::Cpu(CpuRenderer::new())
-                }
-                Err(e) => {
-                    let first = e.to_string().lines().next().unwrap_or_default().to_string();
-                    eprintln!("hitex: GPU backend unavailable ({first}); falling back to the CPU backend");
-                    Engine::Cpu(CpuRenderer::new())
-                }
-            },
-        };
-        Ok(Self { backend, auto: choice == BackendChoice::Auto, note })
-    }
-    /// Backend description, with why `auto` chose it where that is not obvious.
-    pub fn name(&self) -> String {
-        let name = match &self.backend {
-            Engine::Cpu(c) => hitex_render::Renderer::name(c),
-            Engine::Gpu(g) => format!("gpu: {}", g.adapter()),
-        };
-        match (&self.note, &self.backend) {
-            (Some(n), Engine::Cpu(_)) => format!("{name}; {n}"),
-            _ => name,
-        }
-    }
-    /// Runs `f` on the GPU or the CPU; a GPU failure under `auto` moves this
-    /// renderer to the CPU for good and runs `f` again there.
-    fn run(&mut self, mut f: impl FnMut(&mut Engine) -> Result<Frame, RenderError>) -> Result<Frame, RenderError> {
-        match f(&mut self.backend) {
-            Err(RenderError::Gpu(e)) if self.auto => {
-                let first = e.to_string().lines().next().unwrap_or_default().to_string();
-                eprintln!("hitex: GPU backend failed ({first}); continuing on the CPU backend");
-                self.backend = Engine::Cpu(CpuRenderer::new());
-                f(&mut self.backend)
-            }
-            r => r,
-        }
-    }
-    /// Renders one frame of a NURBS model.
-    pub fn render_nurbs(
-        &mut self,
-        scene: &hitex_render::nurbs::PreparedNurbs,
-        camera: &hitex_core::scene::Camera,
-        w: u32,
-        h: u32,
-    ) -> Result<Frame, RenderError> {
-        self.run(|b| match b {
-            Engine::Cpu(c) => c.render_nurbs(scene, camera, w, h),
-            Engine::Gpu(g) => g.render_nurbs(scene, camera, w, h),
-        })
-    }
-    /// Renders one frame of a BTF surface lit by a point light at `light`.
-    pub fn render_btf(
-        &mut self,
-        scene: &hitex_render::btf::PreparedBtf,
-        camera: &hitex_core::scene::Camera,
-        light: glam::Vec3,
-        w: u32,
-        h: u32,
-    ) -> Result<Frame, RenderError> {
-        self.run(|b| match b {
-            Engine::Cpu(c) => c.render_btf(scene, camera, light, w, h),
-            Engine::Gpu(g) => g.render_btf(scene, camera, light, w, h),
-        })
-    }
-    /// Renders one flight frame over a GST store; with `stats`, the CPU
-    /// backend also returns the span sampler's bank traffic.
-    pub fn render_fly(
-        &mut self,
-        u: &hitex_render::terrain::FlyUniform,
-        pages: &hitex_render::terrain::FlyPages,
-        ground: hitex_render::terrain::FlyGround<'_>,
-        stats: bool,
-    ) -> Result<(Frame, Option<hitex_core::texture::span::BankModel>), RenderError> {
-        let mut banks = None;
-        let frame = self.run(|b| match b {
-            Engine::Cpu(_) => {
-                let f = hitex_render::cpu::terrain::render_fly_with(u, pages, ground, stats)?;
-                banks = f.banks;
-                Ok(f.frame)
-            }
-            Engine::Gpu(g) => g.render_fly(u, pages, ground),
-        })?;
-        Ok((frame, banks))
-    }
-    /// Renders one frame.
-    pub fn render(
-        &mut self,
-        scene: &PreparedScene,
-        camera: &hitex_core::scene::Camera,
-        w: u32,
-        h: u32,
-    ) -> Result<Frame, RenderError> {
-        self.run(|b| match b {
-            Engine::Cpu(c) => c.render_view(scene, camera, w, h),
-            Engine::Gpu(g) => g.render_view(scene, camera, w, h),
-        })
-    }
+/// Renders `job` and returns its image.
+pub fn render_frame(r: &mut impl Renderer, job: &Job<'_>, (w, h): (u32, u32)) -> Result<Frame, RenderError> {
+    Ok(r.render(job, w, h)?.frame)
 }
 
 fn rayon_threads() -> usize {
@@ -396,12 +276,12 @@ fn run(cli: Cli) -> Result<(), CliError> {
             }
             let (w, h) = size.unwrap_or((s.width, s.height));
             let prepared = PreparedScene::new(&s);
-            let mut r = AnyRenderer::open(backend.into())?;
+            let mut r = open_renderer(backend.into())?;
             let spinner = indicatif::ProgressBar::new_spinner();
             spinner.set_message(format!("rendering {w}x{h} with {}", r.name()));
             spinner.enable_steady_tick(std::time::Duration::from_millis(120));
             let t = Instant::now();
-            let frame = r.render(&prepared, &prepared.camera, w, h);
+            let frame = render_frame(&mut r, &Job::Scene { scene: &prepared, camera: prepared.camera }, (w, h));
             spinner.finish_and_clear();
             let mut frame = frame?;
             let ms = t.elapsed().as_secs_f64() * 1e3;

@@ -1,10 +1,11 @@
 //! `hitex nurbs …`: exact per-pixel NURBS surfaces.
 
-use crate::{AnyRenderer, Backend, CliError, parse_size, save};
+use crate::{Backend, CliError, open_renderer, parse_size, render_frame, save};
 use clap::{Args, Subcommand, ValueEnum};
 use glam::Vec3;
 use hitex_io::models::{NurbsModel, load_model};
 use hitex_render::nurbs::{ModelView, NurbsMode, PreparedNurbs, UpAxis};
+use hitex_render::{Job, Renderer};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -427,12 +428,7 @@ fn parse_uv(s: &str) -> Result<(f64, f64), String> {
 
 /// Prepares a model for rendering.
 pub fn prepare(model: &NurbsModel, density: u32) -> PreparedNurbs {
-    let mut p = PreparedNurbs::new(model.nurbs(), &model.ranges(), density);
-    if model.surfaces.iter().any(|s| !s.trim.is_empty()) {
-        let trims: Vec<_> = model.surfaces.iter().map(|s| s.trim.clone()).collect();
-        p.set_trims(&trims);
-    }
-    p
+    PreparedNurbs::trimmed(model.nurbs(), &model.ranges(), &model.trims(), density)
 }
 
 /// Runs a `hitex nurbs` subcommand.
@@ -497,9 +493,9 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             let view = ModelView { up, turn_deg: a.turn, elevation_deg: a.elevation };
             let window = view_window(a.size.0, a.size.1, has_legend(p.mode));
             let cam = p.view_camera(&view, a.size.0 as f32 / a.size.1 as f32, window);
-            let mut r = AnyRenderer::open(a.backend.into())?;
+            let mut r = open_renderer(a.backend.into())?;
             let t = Instant::now();
-            let mut f = r.render_nurbs(&p, &cam, a.size.0, a.size.1)?;
+            let mut f = render_frame(&mut r, &Job::Nurbs { model: &p, camera: cam }, a.size)?;
             let ms = t.elapsed().as_secs_f64() * 1e3;
             mode_legend(&mut f, &p, a.range.is_some());
             save(&f, &a.output)?;

@@ -1,6 +1,6 @@
 //! `hitex terrain …`: elevation models draped with geospecific imagery.
 
-use crate::{AnyRenderer, Backend, CliError, parse_size, save};
+use crate::{Backend, CliError, open_renderer, parse_size, render_frame, save};
 use clap::{Args, Subcommand};
 use glam::{Mat4, Vec2, Vec3};
 use hitex_core::scene::{Camera, Light, Material, Object, RenderMode, Scene};
@@ -9,6 +9,7 @@ use hitex_core::texture::{ColorSpace, Filter, Image, MipPyramid, SamplerOptions,
 use hitex_io::dem::load_elevation;
 use hitex_io::geotiff::{GeoRaster, fill_holes, load_geotiff};
 use hitex_render::PreparedScene;
+use hitex_render::{Job, Renderer};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
@@ -368,9 +369,9 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
         nurbs_mode: "shaded".into(),
     };
     let prepared = PreparedScene::new(&scene);
-    let mut r = AnyRenderer::open(a.backend.into())?;
+    let mut r = open_renderer(a.backend.into())?;
     let t = Instant::now();
-    let mut f = r.render(&prepared, &prepared.camera, a.size.0, a.size.1)?;
+    let mut f = render_frame(&mut r, &Job::Scene { scene: &prepared, camera: prepared.camera }, a.size)?;
     let ms = t.elapsed().as_secs_f64() * 1e3;
     // a terrain that covers (almost) nothing is said, not left as a sky picture
     let e = hitex_core::texture::linear_to_srgb_u8;

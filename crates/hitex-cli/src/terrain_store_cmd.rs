@@ -1,7 +1,7 @@
 //! `hitex terrain build` and `hitex terrain fly`: GST pyramids on disk and
 //! flights over them through the resident-map cache.
 
-use crate::{AnyRenderer, Backend, CliError, parse_size, save};
+use crate::{Backend, CliError, open_renderer, parse_size, save};
 use clap::Args;
 use glam::DVec2;
 use hitex_core::residency::{MapKey, ResidentMaps, View, active_maps};
@@ -10,6 +10,7 @@ use hitex_io::gst::{
     read_tile,
 };
 use hitex_render::terrain::{FlyCamera, FlyGround, FlyMesh, FlyPages, FlySampler, FlyUniform, GenericTexture};
+use hitex_render::{Job, Renderer};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -625,7 +626,7 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
     });
     let sampler = FlySampler::from(a.sampler);
     let mut cache = open_cache(&a.store, &meta, a.budget)?;
-    let mut renderer = AnyRenderer::open(a.backend.into())?;
+    let mut renderer = open_renderer(a.backend.into())?;
     let (t0, t1) = (keys[0].t, keys[keys.len() - 1].t);
     let mut times = Vec::new();
     let mut peak = (0usize, 0usize);
@@ -684,7 +685,11 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
             (Some(r), Some(m)) => FlyGround::Mesh { mesh: m, generic: &r.generic },
             _ => FlyGround::Flat,
         };
-        let (frame, banks) = renderer.render_fly(&u, &pages, ground, a.stats)?;
+        let hitex_render::Rendered { frame, banks } = renderer.render(
+            &Job::Flight { uniform: u, pages: std::borrow::Cow::Borrowed(&pages), ground, stats: a.stats },
+            u.sizes[0],
+            u.sizes[1],
+        )?;
         let ms = start.elapsed().as_secs_f64() * 1e3;
         times.push(ms);
         peak = (peak.0.max(stats.resident), peak.1.max(stats.bytes));

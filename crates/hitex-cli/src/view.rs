@@ -7,7 +7,7 @@
 //! window shows is the frame the renderer produced, so a screenshot of a view
 //! equals the headless render of the same camera.
 
-use crate::{AnyRenderer, Backend, CliError, parse_size, save};
+use crate::{Backend, CliError, open_renderer, parse_size, render_frame, save};
 use clap::{Args, ValueEnum};
 use eframe::egui;
 use glam::{DVec2, Vec3};
@@ -23,6 +23,7 @@ use hitex_core::texture::span::{
 use hitex_io::gst::StoreMeta;
 use hitex_render::btf::{BtfSurface, PreparedBtf};
 use hitex_render::nurbs::{NurbsMode, PreparedNurbs};
+use hitex_render::{AnyRenderer, Job, Renderer};
 use hitex_render::{Frame, PreparedScene};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -323,19 +324,21 @@ impl Content {
     /// Renders the current view at `w`×`h`.
     fn render(&mut self, r: &mut AnyRenderer, w: u32, h: u32) -> Result<Frame, CliError> {
         match self {
-            Content::Scene { prepared, orbit, .. } => Ok(r.render(prepared, &orbit.camera(), w, h)?),
+            Content::Scene { prepared, orbit, .. } => {
+                Ok(render_frame(r, &Job::Scene { scene: prepared, camera: orbit.camera() }, (w, h))?)
+            }
             Content::Nurbs { prepared, orbit, light, light_moved } => {
                 // the model's own light (as the headless render has it) until the sliders move
                 if *light_moved {
                     prepared.light = Some(light_dir(light[0], light[1]));
                 }
-                let mut f = r.render_nurbs(prepared, &orbit.camera(), w, h)?;
+                let mut f = render_frame(r, &Job::Nurbs { model: prepared, camera: orbit.camera() }, (w, h))?;
                 crate::nurbs_cmd::mode_legend(&mut f, prepared, false);
                 Ok(f)
             }
             Content::Btf(b) => {
                 let light = crate::btf_cmd::light_for(&b.surface, b.quad, b.light[0], b.light[1]);
-                Ok(r.render_btf(&b.prepared, &b.orbit.camera(), light, w, h)?)
+                Ok(render_frame(r, &Job::Btf { surface: &b.prepared, camera: b.orbit.camera(), light }, (w, h))?)
             }
             Content::Store { meta, cache, flight, fov, per_side, stats } => {
                 let extent = DVec2::new(meta.width as f64, meta.height as f64);
@@ -373,7 +376,13 @@ impl Content {
                     s.missing,
                     s.failed
                 );
-                Ok(r.render_fly(&u, &pages, hitex_render::terrain::FlyGround::Flat, false)?.0)
+                let job = Job::Flight {
+                    uniform: u,
+                    pages: std::borrow::Cow::Owned(pages),
+                    ground: hitex_render::terrain::FlyGround::Flat,
+                    stats: false,
+                };
+                Ok(render_frame(r, &job, (w, h))?)
             }
             Content::Ground { pyr, wrap, flight, mode, banks } => {
                 let view = FlightView {
@@ -728,7 +737,7 @@ pub fn run(a: ViewArgs) -> Result<(), CliError> {
     if std::env::var_os("DISPLAY").is_none_or(|d| d.is_empty()) {
         return Err(no_window("no display: DISPLAY is not set (hitex view opens an X11 window)"));
     }
-    let renderer = AnyRenderer::open(a.backend.into())?;
+    let renderer = open_renderer(a.backend.into())?;
     let failure = std::sync::Arc::new(std::sync::Mutex::new(None));
     let app = ViewApp {
         content,

@@ -30,6 +30,11 @@ impl NurbsModel {
     pub fn nurbs(&self) -> Vec<NurbsSurface> {
         self.surfaces.iter().map(|s| s.surface.clone()).collect()
     }
+    /// Each patch's trim loops in its parameter space (empty: untrimmed).
+    pub fn trims(&self) -> Vec<Vec<Vec<[f64; 2]>>> {
+        self.surfaces.iter().map(|s| s.trim.clone()).collect()
+    }
+
     /// The parameter ranges.
     pub fn ranges(&self) -> Vec<((f64, f64), (f64, f64))> {
         self.surfaces.iter().map(|s| s.range).collect()

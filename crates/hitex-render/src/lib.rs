@@ -1,4 +1,4 @@
-//! hitex-render: two backends behind one trait.
+//! hitex-render: two backends behind one render API ([`job`]).
 //!
 //! * [`cpu`]: a multi-threaded tiled rasterizer (top-left fill rule, 8-bit
 //!   sub-pixel precision, perspective-correct attributes, depth buffer, pixels
@@ -12,6 +12,7 @@ pub mod btf;
 pub mod compare;
 pub mod cpu;
 pub mod gpu;
+pub mod job;
 pub mod legend;
 pub mod nurbs;
 pub mod prepare;
@@ -20,6 +21,7 @@ pub mod terrain;
 pub use compare::{ImageDiff, compare_rgba};
 pub use cpu::CpuRenderer;
 pub use gpu::{GpuError, GpuRenderer, adapters_report};
+pub use job::{AnyRenderer, BackendChoice, Engine, Job, OpenOptions, Rendered, Renderer};
 pub use prepare::PreparedScene;
 
 use thiserror::Error;
@@ -44,26 +46,6 @@ pub enum RenderError {
     /// The request itself is invalid (size, scene).
     #[error("{0}")]
     Invalid(String),
-}
-
-/// Which backend renders.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum BackendChoice {
-    /// The GPU if an adapter exists, else the CPU.
-    #[default]
-    Auto,
-    /// The CPU reference renderer.
-    Cpu,
-    /// wgpu; an error if no adapter exists.
-    Gpu,
-}
-
-/// A renderer: one of the two backends.
-pub trait Renderer {
-    /// Human-readable name ("cpu (2 threads)", "gpu: llvmpipe (Vulkan)").
-    fn name(&self) -> String;
-    /// Renders a prepared scene at `width`×`height`.
-    fn render(&mut self, scene: &PreparedScene, width: u32, height: u32) -> Result<Frame, RenderError>;
 }
 
 /// Checks an output size.

@@ -452,6 +452,18 @@ impl PreparedNurbs {
         Self::with_densities(surfaces, ranges, &densities)
     }
 
+    /// Like [`PreparedNurbs::new`] for a model whose patches carry trim
+    /// loops (`trims[k]` for patch k; empty: untrimmed). Models read from
+    /// files (IGES 144/142, free-form OBJ) go through this one, so that no
+    /// caller can drop their trims by forgetting a step.
+    pub fn trimmed(surfaces: Vec<NurbsSurface>, ranges: &[ParamRange], trims: &[TrimLoops], density: u32) -> Self {
+        let mut p = Self::new(surfaces, ranges, density);
+        if trims.iter().any(|t| !t.is_empty()) {
+            p.set_trims(trims);
+        }
+        p
+    }
+
     /// Like [`PreparedNurbs::new`] with a tessellation density per patch.
     pub fn with_densities(surfaces: Vec<NurbsSurface>, ranges: &[ParamRange], densities: &[u32]) -> Self {
         let mut vertices = Vec::new();

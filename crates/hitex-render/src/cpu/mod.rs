@@ -14,7 +14,7 @@ pub mod terrain;
 pub mod textured;
 
 use crate::prepare::PreparedScene;
-use crate::{Frame, RenderError, Renderer, check_size};
+use crate::{Frame, RenderError, check_size};
 use hitex_core::scene::Camera;
 
 /// The CPU backend. Uses the rayon thread pool (all cores unless
@@ -138,14 +138,5 @@ impl CpuRenderer {
         let view_proj = glam::Mat4::from_cols_array_2d(&frame.view_proj);
         raster::rasterize(&mut target, view_proj, &positions, &varyings, &scene.indices, &draws, &program);
         Ok(Frame { width, height, rgba: target.into_rgba() })
-    }
-}
-
-impl Renderer for CpuRenderer {
-    fn name(&self) -> String {
-        format!("cpu ({} threads, {})", rayon::current_num_threads(), simd::level())
-    }
-    fn render(&mut self, scene: &PreparedScene, width: u32, height: u32) -> Result<Frame, RenderError> {
-        self.render_view(scene, &scene.camera, width, height)
     }
 }

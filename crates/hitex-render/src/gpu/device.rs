@@ -110,6 +110,16 @@ impl GpuContext {
         Self::open(adapter)
     }
 
+    /// Wraps a device that an application opened itself, so that hitex
+    /// renders beside the application's own work. hitex installs no error or
+    /// device-lost callback on a device it does not own: a loss shows as the
+    /// next render's error instead. Compressed BTF layouts need
+    /// `TEXTURE_COMPRESSION_BC` among the device's features.
+    pub fn on_device(adapter: wgpu::Adapter, device: wgpu::Device, queue: wgpu::Queue) -> Self {
+        let info = adapter.get_info();
+        Self { adapter, device, queue, info, lost: Arc::default() }
+    }
+
     /// Opens a device on `adapter`.
     fn open(adapter: wgpu::Adapter) -> Result<Self, GpuError> {
         let info = adapter.get_info();

@@ -11,7 +11,7 @@ pub use btf::layout_source;
 pub use device::{GpuContext, adapters_report};
 
 use crate::prepare::{AtlasLayout, MAX_ATLAS_LEVELS, MaterialUniform, PreparedScene, Vertex, background_rgba8};
-use crate::{Frame, RenderError, Renderer, check_size};
+use crate::{Frame, RenderError, check_size};
 use hitex_core::scene::Camera;
 use hitex_core::texture::{ColorSpace, MipPyramid};
 use std::sync::Arc;
@@ -166,6 +166,12 @@ impl GpuRenderer {
     /// Opens the best adapter among `backends` (e.g. `wgpu::Backends::GL`).
     pub fn with_backends(backends: wgpu::Backends) -> Result<Self, GpuError> {
         Self::on(GpuContext::with_backends(backends)?)
+    }
+
+    /// Builds the renderer on an application's own device and queue (see
+    /// [`GpuContext::on_device`]).
+    pub fn on_device(adapter: wgpu::Adapter, device: wgpu::Device, queue: wgpu::Queue) -> Result<Self, GpuError> {
+        Self::on(GpuContext::on_device(adapter, device, queue))
     }
 
     /// Builds the pipeline on an opened context.
@@ -557,15 +563,6 @@ fn read_back(
     }
     buf.unmap();
     Ok(out)
-}
-
-impl Renderer for GpuRenderer {
-    fn name(&self) -> String {
-        format!("gpu: {}", self.adapter())
-    }
-    fn render(&mut self, scene: &PreparedScene, width: u32, height: u32) -> Result<Frame, RenderError> {
-        self.render_view(scene, &scene.camera, width, height)
-    }
 }
 
 /// Keeps `Arc` in the public signature set used by callers sharing pyramids.

@@ -1,0 +1,323 @@
+//! One render API for both backends: a [`Job`] says what to draw, a
+//! [`Renderer`] draws it.
+//!
+//! ```no_run
+//! use hitex_render::{AnyRenderer, BackendChoice, Job, Renderer};
+//! # fn f(model: &hitex_render::nurbs::PreparedNurbs, camera: hitex_core::scene::Camera) -> Result<(), hitex_render::RenderError> {
+//! let mut r = AnyRenderer::open(BackendChoice::Auto)?;
+//! let out = r.render(&Job::Nurbs { model, camera }, 512, 512)?;
+//! assert_eq!(out.frame.rgba.len(), 512 * 512 * 4);
+//! # Ok(()) }
+//! ```
+//!
+//! [`CpuRenderer`], [`GpuRenderer`] and [`AnyRenderer`] (the GPU with the
+//! CPU taking over when the GPU fails) all implement [`Renderer`], so one
+//! loop serves every content on every backend.
+
+use crate::btf::PreparedBtf;
+use crate::cpu::CpuRenderer;
+use crate::gpu::{GpuError, GpuRenderer};
+use crate::nurbs::PreparedNurbs;
+use crate::prepare::PreparedScene;
+use crate::terrain::{FlyGround, FlyPages, FlyUniform};
+use crate::{Frame, RenderError};
+use hitex_core::scene::Camera;
+use hitex_core::texture::span::BankModel;
+use std::borrow::Cow;
+
+/// What to render: one of the pillars' prepared contents and its view.
+// a flight's uniform (matrices and sizes, ~200 bytes) is held by value: a
+// job lives on the stack for one frame, and no other variant is copied often
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone)]
+pub enum Job<'a> {
+    /// A textured scene (and the NURBS model it may hold).
+    Scene {
+        /// The prepared scene.
+        scene: &'a PreparedScene,
+        /// The view.
+        camera: Camera,
+    },
+    /// A NURBS model, exact per pixel.
+    Nurbs {
+        /// The prepared model.
+        model: &'a PreparedNurbs,
+        /// The view.
+        camera: Camera,
+    },
+    /// A BTF surface lit by a point light.
+    Btf {
+        /// The prepared surface.
+        surface: &'a PreparedBtf,
+        /// The view.
+        camera: Camera,
+        /// The light's position (world units).
+        light: glam::Vec3,
+    },
+    /// One flight frame over resident terrain maps. The uniform's size must
+    /// be the size asked of the render.
+    Flight {
+        /// Camera, sampler and sizes.
+        uniform: FlyUniform,
+        /// The page table of resident maps (a frame's own, or borrowed).
+        pages: Cow<'a, FlyPages>,
+        /// Flat ground or a mesh.
+        ground: FlyGround<'a>,
+        /// Record the span sampler's bank traffic (CPU backend only; costs time).
+        stats: bool,
+    },
+}
+
+impl Job<'_> {
+    /// "scene", "NURBS model", "BTF" or "flight".
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Job::Scene { .. } => "scene",
+            Job::Nurbs { .. } => "NURBS model",
+            Job::Btf { .. } => "BTF",
+            Job::Flight { .. } => "flight",
+        }
+    }
+
+    fn check_flight_size(&self, width: u32, height: u32) -> Result<(), RenderError> {
+        if let Job::Flight { uniform, .. } = self
+            && (uniform.sizes[0], uniform.sizes[1]) != (width, height)
+        {
+            return Err(RenderError::Invalid(format!(
+                "the flight uniform is for {}x{}, the render asks {width}x{height}",
+                uniform.sizes[0], uniform.sizes[1]
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// A rendered job: the image and what the backend measured on the way.
+#[derive(Debug, Clone)]
+pub struct Rendered {
+    /// The image.
+    pub frame: Frame,
+    /// Span accesses and bank conflicts of a flight's span sampler, when
+    /// asked for (`stats`) and the backend records them (the CPU's).
+    pub banks: Option<BankModel>,
+}
+
+impl From<Frame> for Rendered {
+    fn from(frame: Frame) -> Self {
+        Self { frame, banks: None }
+    }
+}
+
+/// A backend: renders any [`Job`].
+pub trait Renderer {
+    /// Human-readable name ("cpu (2 threads, avx512)", "gpu: llvmpipe (Vulkan)").
+    fn name(&self) -> String;
+    /// Renders `job` at `width`×`height`.
+    fn render(&mut self, job: &Job<'_>, width: u32, height: u32) -> Result<Rendered, RenderError>;
+}
+
+impl Renderer for CpuRenderer {
+    fn name(&self) -> String {
+        format!("cpu ({} threads, {})", rayon::current_num_threads(), crate::cpu::simd::level())
+    }
+    fn render(&mut self, job: &Job<'_>, width: u32, height: u32) -> Result<Rendered, RenderError> {
+        job.check_flight_size(width, height)?;
+        Ok(match job {
+            Job::Scene { scene, camera } => self.render_view(scene, camera, width, height)?.into(),
+            Job::Nurbs { model, camera } => self.render_nurbs(model, camera, width, height)?.into(),
+            Job::Btf { surface, camera, light } => self.render_btf(surface, camera, *light, width, height)?.into(),
+            Job::Flight { uniform, pages, ground, stats } => {
+                crate::check_size(width, height)?;
+                let f = crate::cpu::terrain::render_fly_with(uniform, pages, *ground, *stats)?;
+                Rendered { frame: f.frame, banks: f.banks }
+            }
+        })
+    }
+}
+
+impl Renderer for GpuRenderer {
+    fn name(&self) -> String {
+        format!("gpu: {}", self.adapter())
+    }
+    fn render(&mut self, job: &Job<'_>, width: u32, height: u32) -> Result<Rendered, RenderError> {
+        job.check_flight_size(width, height)?;
+        Ok(match job {
+            Job::Scene { scene, camera } => self.render_view(scene, camera, width, height)?,
+            Job::Nurbs { model, camera } => self.render_nurbs(model, camera, width, height)?,
+            Job::Btf { surface, camera, light } => self.render_btf(surface, camera, *light, width, height)?,
+            Job::Flight { uniform, pages, ground, .. } => self.render_fly(uniform, pages, *ground)?,
+        }
+        .into())
+    }
+}
+
+/// Which backend renders.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BackendChoice {
+    /// A hardware GPU if there is one, else the CPU backend (a software
+    /// rasterizer is slower than the CPU backend; see [`OpenOptions`]).
+    #[default]
+    Auto,
+    /// The CPU backend.
+    Cpu,
+    /// wgpu on the best adapter, a software one too; an error if none exists.
+    Gpu,
+}
+
+/// How [`AnyRenderer::open_with`] chooses and opens a backend.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct OpenOptions {
+    /// Let `auto` take a software GPU adapter (lavapipe, llvmpipe) too.
+    pub software_for_auto: bool,
+    /// Destroy the GPU device right after it opens, as a driver reset would:
+    /// for testing the fallback paths.
+    pub lose_device: bool,
+}
+
+/// Where [`AnyRenderer`] sends its notices.
+type NoticeSink = Box<dyn FnMut(&str) + Send>;
+
+/// One of the two backends.
+pub enum Engine {
+    /// The CPU backend.
+    Cpu(CpuRenderer),
+    /// The wgpu backend.
+    Gpu(Box<GpuRenderer>),
+}
+
+/// The renderer an application opens: the backend asked for, and under
+/// `auto` the CPU backend taking over for good when the GPU fails (no
+/// adapter, device lost, out of memory, hang). Nothing is printed: what
+/// happened is kept as notices ([`AnyRenderer::take_notices`]) or handed
+/// to a callback ([`AnyRenderer::on_notice`]).
+pub struct AnyRenderer {
+    engine: Engine,
+    auto: bool,
+    /// Why `auto` chose the CPU backend, said in the name.
+    why_cpu: Option<String>,
+    notices: Vec<String>,
+    sink: Option<NoticeSink>,
+}
+
+impl std::fmt::Debug for AnyRenderer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AnyRenderer").field("name", &self.name()).finish()
+    }
+}
+
+impl AnyRenderer {
+    /// Opens the backend `choice` names with default options.
+    pub fn open(choice: BackendChoice) -> Result<Self, GpuError> {
+        Self::open_with(choice, OpenOptions::default())
+    }
+
+    /// Opens the backend `choice` names. Only `Gpu` can fail (no adapter,
+    /// no device); `auto` falls back to the CPU backend with a notice.
+    pub fn open_with(choice: BackendChoice, options: OpenOptions) -> Result<Self, GpuError> {
+        let software_ok = choice != BackendChoice::Auto || options.software_for_auto;
+        let gpu = || -> Result<GpuRenderer, GpuError> {
+            let g = if software_ok { GpuRenderer::new()? } else { GpuRenderer::hardware()? };
+            if options.lose_device {
+                g.context().lose_device();
+            }
+            Ok(g)
+        };
+        let mut r =
+            Self { engine: Engine::Cpu(CpuRenderer::new()), auto: false, why_cpu: None, notices: vec![], sink: None };
+        match choice {
+            BackendChoice::Cpu => {}
+            BackendChoice::Gpu => r.engine = Engine::Gpu(Box::new(gpu()?)),
+            BackendChoice::Auto => {
+                r.auto = true;
+                match gpu() {
+                    Ok(g) => r.engine = Engine::Gpu(Box::new(g)),
+                    // said in the name, which callers print anyway
+                    Err(GpuError::SoftwareOnly(_)) => {
+                        r.why_cpu = Some("auto: no hardware GPU, and the software one is slower".into())
+                    }
+                    Err(e) => r.notices.push(format!(
+                        "GPU backend unavailable ({}); falling back to the CPU backend",
+                        first_line(&e.to_string())
+                    )),
+                }
+            }
+        }
+        Ok(r)
+    }
+
+    /// Sends every notice, those already kept first, to `sink` from now on
+    /// (e.g. a line on stderr) instead of keeping them.
+    pub fn on_notice(&mut self, mut sink: impl FnMut(&str) + Send + 'static) {
+        for n in self.notices.drain(..) {
+            sink(&n);
+        }
+        self.sink = Some(Box::new(sink));
+    }
+
+    /// The notices kept so far (a GPU that failed, the CPU taking over).
+    pub fn take_notices(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.notices)
+    }
+
+    /// The backend in use.
+    pub fn engine(&self) -> &Engine {
+        &self.engine
+    }
+
+    /// The backend in use, mutable (e.g. the GPU's context).
+    pub fn engine_mut(&mut self) -> &mut Engine {
+        &mut self.engine
+    }
+
+    /// True when the GPU backend renders.
+    pub fn is_gpu(&self) -> bool {
+        matches!(self.engine, Engine::Gpu(_))
+    }
+
+    fn notice(&mut self, n: String) {
+        match &mut self.sink {
+            Some(s) => s(&n),
+            None => self.notices.push(n),
+        }
+    }
+}
+
+impl Renderer for AnyRenderer {
+    /// The backend's name, with why `auto` chose the CPU where that is not obvious.
+    fn name(&self) -> String {
+        let name = match &self.engine {
+            Engine::Cpu(c) => c.name(),
+            Engine::Gpu(g) => g.name(),
+        };
+        match (&self.why_cpu, &self.engine) {
+            (Some(n), Engine::Cpu(_)) => format!("{name}; {n}"),
+            _ => name,
+        }
+    }
+
+    /// Renders on the backend in use; a GPU failure under `auto` moves this
+    /// renderer to the CPU for good and renders the job again there.
+    fn render(&mut self, job: &Job<'_>, width: u32, height: u32) -> Result<Rendered, RenderError> {
+        let first = match &mut self.engine {
+            Engine::Cpu(c) => c.render(job, width, height),
+            Engine::Gpu(g) => g.render(job, width, height),
+        };
+        match first {
+            Err(RenderError::Gpu(e)) if self.auto => {
+                self.notice(format!(
+                    "GPU backend failed ({}); continuing on the CPU backend",
+                    first_line(&e.to_string())
+                ));
+                let mut cpu = CpuRenderer::new();
+                let r = cpu.render(job, width, height);
+                self.engine = Engine::Cpu(cpu);
+                r
+            }
+            r => r,
+        }
+    }
+}
+
+fn first_line(s: &str) -> &str {
+    s.lines().next().unwrap_or_default()
+}

@@ -1,0 +1,136 @@
+//! The one render API: jobs on every backend, the CPU taking over under
+//! `auto`, notices instead of printing, a caller's own wgpu device.
+
+mod common;
+
+use common::*;
+use hitex_render::nurbs::PreparedNurbs;
+use hitex_render::terrain::{FlyCamera, FlyGround, FlyPages, FlyUniform};
+use hitex_render::{
+    AnyRenderer, BackendChoice, CpuRenderer, Engine, GpuError, GpuRenderer, Job, OpenOptions, RenderError, Renderer,
+};
+use std::borrow::Cow;
+use std::sync::{Arc, Mutex};
+
+const S: u32 = 96;
+
+fn teapot() -> PreparedNurbs {
+    let m = hitex_io::models::load_model("teapot").unwrap();
+    PreparedNurbs::new(m.nurbs(), &m.ranges(), 4)
+}
+
+/// True when a GPU adapter exists; a visible skip (or a failure under
+/// `HITEX_REQUIRE_GPU=1`) when none does.
+fn have_gpu(test: &str) -> bool {
+    gpu_or_skip(test).is_some()
+}
+
+#[test]
+fn a_flight_job_for_another_size_is_refused_on_every_backend() {
+    let cam = FlyCamera::new(0.5, 0.5, 2000.0, 30.0, 0.0, 45.0);
+    let uniform = FlyUniform::new(&cam, 64, 48, 1, 1);
+    let pages = FlyPages { levels: 1, per_side: 1, origins: vec![[0, 0]], slots: vec![None], maps: Default::default() };
+    let job = Job::Flight { uniform, pages: Cow::Owned(pages), ground: FlyGround::Flat, stats: false };
+    let mut cpu = CpuRenderer::new();
+    match cpu.render(&job, 64, 64) {
+        Err(RenderError::Invalid(m)) => assert!(m.contains("64x48") && m.contains("64x64"), "{m}"),
+        other => panic!("expected a refusal, got {:?}", other.map(|r| r.frame.width)),
+    }
+    if let Some(mut gpu) = gpu_or_skip("a_flight_job_for_another_size_is_refused_on_every_backend") {
+        assert!(matches!(gpu.render(&job, 64, 64), Err(RenderError::Invalid(_))));
+    }
+}
+
+#[test]
+fn the_cpu_choice_renders_what_the_cpu_backend_renders() {
+    let p = teapot();
+    let job = Job::Nurbs { model: &p, camera: p.camera };
+    let mut any = AnyRenderer::open(BackendChoice::Cpu).unwrap();
+    assert!(!any.is_gpu());
+    assert!(any.name().starts_with("cpu ("), "{}", any.name());
+    let a = any.render(&job, S, S).unwrap().frame;
+    let b = CpuRenderer::new().render_nurbs(&p, &p.camera, S, S).unwrap();
+    assert_eq!(a, b);
+    assert!(any.take_notices().is_empty());
+}
+
+#[test]
+fn auto_continues_on_the_cpu_when_the_device_is_lost_and_says_so_once() {
+    if !have_gpu("auto_continues_on_the_cpu_when_the_device_is_lost_and_says_so_once") {
+        return;
+    }
+    let p = teapot();
+    let job = Job::Nurbs { model: &p, camera: p.camera };
+    let options = OpenOptions { software_for_auto: true, lose_device: true };
+    let mut any = AnyRenderer::open_with(BackendChoice::Auto, options).unwrap();
+    assert!(any.is_gpu(), "auto with software_for_auto takes the software adapter");
+    let said = Arc::new(Mutex::new(Vec::<String>::new()));
+    let sink = said.clone();
+    any.on_notice(move |n| sink.lock().unwrap().push(n.to_string()));
+    let first = any.render(&job, S, S).unwrap().frame;
+    assert!(matches!(any.engine(), Engine::Cpu(_)), "the CPU took over");
+    let second = any.render(&job, S, S).unwrap().frame;
+    let cpu = CpuRenderer::new().render_nurbs(&p, &p.camera, S, S).unwrap();
+    assert_eq!(first, cpu, "the frame of the failed render is the CPU's");
+    assert_eq!(second, cpu);
+    let said = said.lock().unwrap().clone();
+    assert_eq!(said.len(), 1, "{said:?}");
+    assert!(said[0].contains("lost") && said[0].contains("CPU"), "{said:?}");
+    assert!(any.take_notices().is_empty(), "notices went to the sink");
+}
+
+#[test]
+fn the_gpu_choice_reports_a_lost_device_instead_of_falling_back() {
+    if !have_gpu("the_gpu_choice_reports_a_lost_device_instead_of_falling_back") {
+        return;
+    }
+    let p = teapot();
+    let options = OpenOptions { software_for_auto: false, lose_device: true };
+    let mut any = AnyRenderer::open_with(BackendChoice::Gpu, options).unwrap();
+    match any.render(&Job::Nurbs { model: &p, camera: p.camera }, S, S) {
+        Err(RenderError::Gpu(GpuError::Lost(_))) => {}
+        other => panic!("expected a lost device, got {:?}", other.map(|r| r.frame.width)),
+    }
+    assert!(any.is_gpu());
+    assert!(any.take_notices().is_empty());
+}
+
+#[test]
+fn a_renderer_on_the_callers_own_device_matches_the_cpu() {
+    if !have_gpu("a_renderer_on_the_callers_own_device_matches_the_cpu") {
+        return;
+    }
+    // the application opens its adapter and device itself
+    let instance = hitex_render::gpu::device::instance();
+    let adapter = hitex_render::gpu::device::adapters(&instance).into_iter().next().expect("an adapter");
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor::default())).unwrap();
+    let mut gpu = GpuRenderer::on_device(adapter, device.clone(), queue).unwrap();
+    let p = teapot();
+    let job = Job::Nurbs { model: &p, camera: p.camera };
+    let g = gpu.render(&job, S, S).unwrap().frame;
+    let c = CpuRenderer::new().render(&job, S, S).unwrap().frame;
+    assert_images("api_on_device_nurbs", &g, &c, GPU_VS_CPU);
+    // the application's device stays usable beside hitex
+    let buf = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: 256,
+        usage: wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    drop(buf);
+}
+
+#[test]
+fn one_loop_renders_every_pillar_on_both_backends() {
+    let Some(gpu) = gpu_or_skip("one_loop_renders_every_pillar_on_both_backends") else {
+        return;
+    };
+    let p = teapot();
+    let scene = hitex_render::PreparedScene::new(&hitex_core::scene::showcase_scene());
+    let jobs = [Job::Nurbs { model: &p, camera: p.camera }, Job::Scene { scene: &scene, camera: scene.camera }];
+    let mut backends: Vec<Box<dyn Renderer>> = vec![Box::new(CpuRenderer::new()), Box::new(gpu)];
+    for job in &jobs {
+        let frames: Vec<_> = backends.iter_mut().map(|r| r.render(job, S, S).unwrap().frame).collect();
+        assert_images(&format!("api_loop_{}", job.kind()), &frames[1], &frames[0], GPU_VS_CPU);
+    }
+}
