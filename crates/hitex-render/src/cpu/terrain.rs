@@ -23,6 +23,7 @@
 //! bank access is that of the continued pyramid, the value the coarsest's).
 
 use super::raster::{QuadShader, Target, rasterize};
+use super::simd::{LANES, Lanes};
 use crate::terrain::{FlyGround, FlyMesh, FlyPages, FlySampler, FlyUniform, GROUND, GenericTexture, MAP, sky};
 use crate::{Frame, RenderError, check_size};
 use glam::{Mat4, Vec3};
@@ -44,6 +45,8 @@ struct Program<'a> {
     slots: Vec<Option<(u32, &'a [u8])>>,
     generic: Vec<&'a [u8]>,
     lut: &'static [f32; 256],
+    /// `a / 255` for every 8-bit alpha (a load instead of a division).
+    alpha: &'static [f32; 256],
 }
 
 /// Per-axis filter taps: texel indices and weights (2 or 4 used).
@@ -93,7 +96,7 @@ impl Program<'_> {
     #[inline(always)]
     fn decode(&self, t: &[u8], i: usize) -> [f32; 4] {
         let Some(p) = t.get(i..i + 4) else { return [0.0; 4] };
-        [self.lut[p[0] as usize], self.lut[p[1] as usize], self.lut[p[2] as usize], p[3] as f32 / 255.0]
+        [self.lut[p[0] as usize], self.lut[p[1] as usize], self.lut[p[2] as usize], self.alpha[p[3] as usize]]
     }
 
     /// The map serving texel (tx, ty) of level z through the page table, and
@@ -136,27 +139,172 @@ impl Program<'_> {
         let (x, y) = (p[0] / s - 0.5, p[1] / s - 0.5);
         let (x0, y0) = (floor(x), floor(y));
         let (fx, fy) = (x - x0, y - y0);
-        let (ix, iy) = (x0 as i32, y0 as i32);
+        lerp2(self.footprint(z, x0 as i32, y0 as i32), fx, fy)
+    }
+
+    /// The 2×2 texels (tx, ty) … (tx + 1, ty + 1) of level z, linear RGBA,
+    /// in the order (0,0) (1,0) (0,1) (1,1); zero where no data lies.
+    #[inline(always)]
+    fn footprint(&self, z: u32, ix: i32, iy: i32) -> [[f32; 4]; 4] {
         // the four texels share one map unless they straddle a map edge: resolve it once
         if ix & 255 != 255 && iy & 255 != 255 {
-            let Some((t, k)) = self.serving(z, ix, iy) else { return [0.0; 4] };
-            let (x0, x1) = ((ix >> k) & 255, ((ix + 1) >> k) & 255);
-            let (y0, y1) = (((iy >> k) & 255) << 8, (((iy + 1) >> k) & 255) << 8);
-            let c = [
-                self.decode(t, ((y0 | x0) * 4) as usize),
-                self.decode(t, ((y0 | x1) * 4) as usize),
-                self.decode(t, ((y1 | x0) * 4) as usize),
-                self.decode(t, ((y1 | x1) * 4) as usize),
-            ];
-            return lerp2(c, fx, fy);
+            let Some((t, k)) = self.serving(z, ix, iy) else { return [[0.0; 4]; 4] };
+            return self.footprint_in(t, k, ix, iy);
         }
-        let c = [
-            self.texel(z, ix, iy),
-            self.texel(z, ix + 1, iy),
-            self.texel(z, ix, iy + 1),
-            self.texel(z, ix + 1, iy + 1),
-        ];
-        lerp2(c, fx, fy)
+        [self.texel(z, ix, iy), self.texel(z, ix + 1, iy), self.texel(z, ix, iy + 1), self.texel(z, ix + 1, iy + 1)]
+    }
+
+    /// The 2×2 texels from (ix, iy) of a footprint inside one map, served by
+    /// `t` with shift `k` (see [`Program::serving`]).
+    #[inline(always)]
+    fn footprint_in(&self, t: &[u8], k: u32, ix: i32, iy: i32) -> [[f32; 4]; 4] {
+        let (x0, x1) = ((ix >> k) & 255, ((ix + 1) >> k) & 255);
+        let (y0, y1) = (((iy >> k) & 255) << 8, (((iy + 1) >> k) & 255) << 8);
+        [
+            self.decode(t, ((y0 | x0) * 4) as usize),
+            self.decode(t, ((y0 | x1) * 4) as usize),
+            self.decode(t, ((y1 | x0) * 4) as usize),
+            self.decode(t, ((y1 | x1) * 4) as usize),
+        ]
+    }
+
+    /// The ground points through 16 pixels of one row (x positions `px`,
+    /// row position `py`), as [`Program::ground`] lane by lane: map x, map y
+    /// and a bit per lane with ground under it.
+    #[inline(always)]
+    fn ground_lanes(&self, px: &Lanes, py: f32) -> (Lanes, Lanes, u32) {
+        let u = &self.u;
+        let (w, h) = (u.sizes[0] as f32, u.sizes[1] as f32);
+        let tan_h = u.eye[3];
+        let sy = (1.0 - 2.0 * py / h) * tan_h * h / w;
+        let (mut gx, mut gy, mut ok) = ([0.0f32; LANES], [0.0f32; LANES], 0u32);
+        for i in 0..LANES {
+            let sx = (2.0 * px[i] / w - 1.0) * tan_h;
+            let d0 = u.fwd[0] + u.right[0] * sx + u.up[0] * sy;
+            let d1 = u.fwd[1] + u.right[1] * sx + u.up[1] * sy;
+            let d2 = u.fwd[2] + u.right[2] * sx + u.up[2] * sy;
+            let t = -u.eye[2] / d2;
+            gx[i] = u.eye[0] + d0 * t;
+            gy[i] = u.eye[1] + d1 * t;
+            let good = d2 < -1e-6 && gx[i].is_finite() && gy[i].is_finite();
+            ok |= (good as u32) << i;
+        }
+        (gx, gy, ok)
+    }
+
+    /// Bilinear reads of level `z[i]` at the ground points (gx, gy) of the
+    /// lanes in `wanted` (the others read nothing; `ok` marks lanes with
+    /// ground): positions on lanes, texels lane by lane; linear RGBA.
+    #[inline(always)]
+    fn bilinear_lanes(&self, z: &[u32; LANES], wanted: u32, ok: u32, gx: &Lanes, gy: &Lanes) -> [Lanes; 4] {
+        let levels = self.pages.levels;
+        let (mut fx, mut fy, mut ix, mut iy) = ([0.0f32; LANES], [0.0f32; LANES], [0i32; LANES], [0i32; LANES]);
+        for i in 0..LANES {
+            // 2^(levels − 1 − z), exactly as the integer shift converted
+            let s = f32::from_bits((levels - 1 - z[i] + 127) << 23);
+            let (x, y) = (
+                if ok >> i & 1 == 1 { gx[i] } else { 0.5 } / s - 0.5,
+                if ok >> i & 1 == 1 { gy[i] } else { 0.5 } / s - 0.5,
+            );
+            let (x0, y0) = (floor(x), floor(y));
+            fx[i] = x - x0;
+            fy[i] = y - y0;
+            ix[i] = x0 as i32;
+            iy[i] = y0 as i32;
+        }
+        let mut c = [[[0.0f32; LANES]; 4]; 4];
+        // neighbouring lanes almost always read one map: its page-table
+        // walk (which depends on the level and the map's column and row
+        // only) is kept for the next lane
+        let mut memo: ([i32; 3], Option<(&[u8], u32)>) = ([-1; 3], None);
+        for i in 0..LANES {
+            if wanted >> i & 1 == 0 {
+                continue;
+            }
+            let (x, y) = (ix[i], iy[i]);
+            let q = if x & 255 != 255 && y & 255 != 255 {
+                let key = [z[i] as i32, x >> 8, y >> 8];
+                if key != memo.0 {
+                    memo = (key, self.serving(z[i], x, y));
+                }
+                match memo.1 {
+                    Some((t, k)) => self.footprint_in(t, k, x, y),
+                    None => [[0.0; 4]; 4],
+                }
+            } else {
+                self.footprint(z[i], x, y)
+            };
+            for (tap, q) in q.iter().enumerate() {
+                for ch in 0..4 {
+                    c[tap][ch][i] = q[ch];
+                }
+            }
+        }
+        std::array::from_fn(|ch| {
+            let mut o = [0.0f32; LANES];
+            for i in 0..LANES {
+                let top = c[0][ch][i] + (c[1][ch][i] - c[0][ch][i]) * fx[i];
+                let bot = c[2][ch][i] + (c[3][ch][i] - c[2][ch][i]) * fx[i];
+                o[i] = top + (bot - top) * fy[i];
+            }
+            o
+        })
+    }
+
+    /// Linear RGB of 16 flat-ground pixels of row `py` from column `x0`, per
+    /// pixel: the same operations as [`Program::shade_flat`] in the same
+    /// order, the ray, footprint, level and blends on lane vectors, the
+    /// texel reads lane by lane.
+    #[inline(always)]
+    fn shade_flat_lanes(&self, x0: u32, py: u32) -> [Lanes; 3] {
+        let px: Lanes = std::array::from_fn(|i| (x0 + i as u32) as f32 + 0.5);
+        let px1: Lanes = std::array::from_fn(|i| px[i] + 1.0);
+        let y = py as f32 + 0.5;
+        let (gx, gy, ok0) = self.ground_lanes(&px, y);
+        let (gx1, gy1, ok1) = self.ground_lanes(&px1, y);
+        let (gx2, gy2, ok2) = self.ground_lanes(&px, y + 1.0);
+        let ok = ok0 & ok1 & ok2;
+        let sky = sky(y, self.u.sizes[1] as f32);
+        if ok == 0 {
+            return sky.map(|c| [c; LANES]);
+        }
+        // eq. (2): the largest partial of the screen-to-map mapping; eq. (3)'s level
+        let levels = self.pages.levels;
+        let top = (levels - 1) as f32;
+        let (mut z0, mut z1, mut t) = ([0u32; LANES], [0u32; LANES], [0.0f32; LANES]);
+        for i in 0..LANES {
+            let foot = (gx1[i] - gx[i])
+                .abs()
+                .max((gy1[i] - gy[i]).abs())
+                .max((gx2[i] - gx[i]).abs())
+                .max((gy2[i] - gy[i]).abs());
+            let zf = (top - super::simd::log2(foot.max(1e-9))).clamp(0.0, top);
+            // a lane without ground reads level 0's first texel, dropped below
+            let zf = if ok >> i & 1 == 1 { zf } else { 0.0 };
+            let f = floor(zf);
+            z0[i] = f as u32;
+            z1[i] = (z0[i] + 1).min(levels - 1);
+            t[i] = zf - f;
+        }
+        let a = self.bilinear_lanes(&z0, ok, ok, &gx, &gy);
+        let mut second = 0u32;
+        for i in 0..LANES {
+            second |= ((z1[i] != z0[i] && t[i] > 0.0) as u32) << i;
+        }
+        let second = second & ok;
+        let b = if second != 0 { self.bilinear_lanes(&z1, second, ok, &gx, &gy) } else { a };
+        std::array::from_fn(|k| {
+            let mut o = [0.0f32; LANES];
+            for i in 0..LANES {
+                let (a4, b4) = (a[k][i], if second >> i & 1 == 1 { b[k][i] } else { a[k][i] });
+                let (a3, b3) = (a[3][i], if second >> i & 1 == 1 { b[3][i] } else { a[3][i] });
+                let c = a4 + (b4 - a4) * t[i];
+                let alpha = a3 + (b3 - a3) * t[i];
+                // over the ground colour; sky where no ground lies
+                o[i] = if ok >> i & 1 == 1 { c + GROUND[k] * (1.0 - alpha) } else { sky[k] };
+            }
+            o
+        })
     }
 
     /// Eq. (2)–(4) at map point `p` with largest partial `foot` (finest texels per pixel).
@@ -333,8 +481,9 @@ impl Program<'_> {
         std::array::from_fn(|i| s[i] + GROUND[i] * (1.0 - s[3]))
     }
 
-    /// Linear RGB of flat-ground pixel (px, py), per pixel.
-    #[inline(always)]
+    /// Linear RGB of flat-ground pixel (px, py), per pixel: the reference
+    /// [`Program::shade_flat_lanes`] must equal bit for bit.
+    #[cfg(test)]
     fn shade_flat(&self, px: u32, py: u32) -> [f32; 3] {
         let (x, y) = (px as f32 + 0.5, py as f32 + 0.5);
         let (Some(p), Some(p1), Some(p2)) = (self.ground(x, y), self.ground(x + 1.0, y), self.ground(x, y + 1.0))
@@ -385,9 +534,11 @@ impl pulp::WithSimd for FlatRow<'_, '_> {
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
         let enc = hitex_core::texture::srgb_encoder();
-        for (px, o) in self.row.chunks_exact_mut(4).enumerate() {
-            let c = self.prog.shade_flat(px as u32, self.py);
-            o.copy_from_slice(&[enc.encode(c[0]), enc.encode(c[1]), enc.encode(c[2]), 255]);
+        for (b, out) in self.row.chunks_mut(4 * LANES).enumerate() {
+            let c = self.prog.shade_flat_lanes((b * LANES) as u32, self.py);
+            for (i, o) in out.chunks_exact_mut(4).enumerate() {
+                o.copy_from_slice(&[enc.encode(c[0][i]), enc.encode(c[1][i]), enc.encode(c[2][i]), 255]);
+            }
         }
     }
 }
@@ -506,7 +657,14 @@ fn bind<'a>(
     let mut u = *u;
     u.params[2] = generic_levels.len() as u32;
     u.params[3] = side;
-    Ok(Program { u, pages, slots, generic, lut: decode_table(ColorSpace::Srgb) })
+    Ok(Program {
+        u,
+        pages,
+        slots,
+        generic,
+        lut: decode_table(ColorSpace::Srgb),
+        alpha: decode_table(ColorSpace::Linear),
+    })
 }
 
 /// Renders one flight frame on the CPU, recording the span sampler's bank
@@ -603,4 +761,90 @@ fn render_mesh(prog: &Program<'_>, mesh: &FlyMesh, sampler: FlySampler, stats: b
         all
     });
     Ok(FlyFrame { frame: Frame { width: w, height: h, rgba: target.into_rgba() }, banks })
+}
+
+#[cfg(test)]
+mod tests {
+    // a lane's pixel position comes from the lane index
+    #![allow(clippy::needless_range_loop)]
+    use super::*;
+    use crate::terrain::FlyCamera;
+    use std::collections::HashMap;
+    use std::sync::Arc;
+
+    /// A page table of 4 levels, 3×3 maps a level, some slots empty, some
+    /// served by a coarser map, texels (alpha too) from a hash.
+    fn pages() -> FlyPages {
+        let (levels, per) = (4u32, 3u32);
+        let mut maps = HashMap::new();
+        let mut slots = Vec::new();
+        let origins: Vec<[i32; 2]> = (0..levels).map(|z| [(1i32 << z) / 2 - 1, (1i32 << z) / 2 - 1]).collect();
+        for z in 0..levels {
+            for k in 0..(per * per) as i32 {
+                let (x, y) = (origins[z as usize][0] + k % per as i32, origins[z as usize][1] + k / per as i32);
+                let h = (x * 73 + y * 151 + z as i32 * 29).rem_euclid(7);
+                if x < 0 || y < 0 || h == 0 {
+                    slots.push(None);
+                    continue;
+                }
+                // every third map stands in for itself one level coarser, as while it loads
+                let key = if h == 3 && z > 0 {
+                    MapKey { z: z - 1, x: x as u32 / 2, y: y as u32 / 2 }
+                } else {
+                    MapKey { z, x: x as u32, y: y as u32 }
+                };
+                maps.entry(key).or_insert_with(|| {
+                    let mut t = vec![0u8; (MAP * MAP * 4) as usize];
+                    for (i, b) in t.iter_mut().enumerate() {
+                        let v = (i as u32 ^ (key.x * 977) ^ (key.y * 4099) ^ (key.z * 131)).wrapping_mul(2_654_435_761);
+                        *b = (v >> 24) as u8;
+                    }
+                    Arc::new(t)
+                });
+                slots.push(Some(key));
+            }
+        }
+        FlyPages { levels, per_side: per, origins, slots, maps }
+    }
+
+    #[test]
+    fn flat_lanes_equal_the_per_pixel_program() {
+        let pages = pages();
+        // looking down, across, at the horizon (sky lanes), from low and high,
+        // a width that ends inside a block
+        let views = [
+            (1024.0, 1024.0, 300.0, 20.0, 20.0),
+            (700.0, 1500.0, 80.0, 60.0, 300.0),
+            (1200.0, 900.0, 900.0, 80.0, 135.0),
+        ];
+        for (n, &(x, y, alt, pitch, heading)) in views.iter().enumerate() {
+            let cam = FlyCamera::new(x, y, alt, pitch, heading, 50.0);
+            let (w, h) = (100u32, 60u32);
+            let u = FlyUniform::new(&cam, w, h, pages.levels, pages.per_side);
+            let prog = bind(&u, &pages, None).unwrap();
+            let mut skies = 0;
+            let mut seen = std::collections::HashSet::new();
+            for py in 0..h {
+                for x0 in (0..w).step_by(LANES) {
+                    let lanes = prog.shade_flat_lanes(x0, py);
+                    for i in 0..LANES.min((w - x0) as usize) {
+                        let want = prog.shade_flat(x0 + i as u32, py);
+                        let got = [lanes[0][i], lanes[1][i], lanes[2][i]];
+                        assert_eq!(
+                            got.map(f32::to_bits),
+                            want.map(f32::to_bits),
+                            "view {n}, pixel ({}, {py})",
+                            x0 + i as u32
+                        );
+                        skies += usize::from(want == sky(py as f32 + 0.5, h as f32));
+                        seen.insert(want.map(f32::to_bits));
+                    }
+                }
+            }
+            assert!(seen.len() > 200, "view {n}: imagery, not a flat colour ({} colours)", seen.len());
+            if n == 2 {
+                assert!(skies > 0 && skies < (w * h) as usize, "view 2 shows sky and ground ({skies} sky pixels)");
+            }
+        }
+    }
 }
