@@ -56,6 +56,7 @@ struct Axis {
     w: [f32; 4],
 }
 
+#[inline(always)]
 fn catmull_rom(t: f32) -> [f32; 4] {
     let t2 = t * t;
     let t3 = t2 * t;
@@ -63,6 +64,7 @@ fn catmull_rom(t: f32) -> [f32; 4] {
 }
 
 /// Taps on one axis at texel position `q` inside the block `o ..= o + b − 1`.
+#[inline(always)]
 fn axis(q: f32, bicubic: bool, o: i32, b: i32) -> Axis {
     let f = floor(q);
     let t = q - f;
@@ -128,6 +130,21 @@ impl Program<'_> {
     #[inline(always)]
     fn texel(&self, z: u32, tx: i32, ty: i32) -> [f32; 4] {
         match self.serving(z, tx, ty) {
+            Some((t, k)) => self.decode(t, ((((ty >> k) & 255) << 8 | ((tx >> k) & 255)) * 4) as usize),
+            None => [0.0; 4],
+        }
+    }
+
+    /// Like [`Program::texel`], keeping the page-table walk of the last map
+    /// read in `memo` (the walk depends on the level and the map's column
+    /// and row only).
+    #[inline(always)]
+    fn texel_memo<'s>(&'s self, memo: &mut ([i32; 3], Option<(&'s [u8], u32)>), z: u32, tx: i32, ty: i32) -> [f32; 4] {
+        let key = [z as i32, tx >> 8, ty >> 8];
+        if key != memo.0 {
+            *memo = (key, self.serving(z, tx, ty));
+        }
+        match memo.1 {
             Some((t, k)) => self.decode(t, ((((ty >> k) & 255) << 8 | ((tx >> k) & 255)) * 4) as usize),
             None => [0.0; 4],
         }
@@ -358,7 +375,42 @@ impl Program<'_> {
         std::array::from_fn(|i| a[i] + (b[i] - a[i]) * t)
     }
 
-    /// Filters lane `me` of a span at finest-numbered level `k` (virtual above the coarsest).
+    /// The block origin and every point's taps of a span at finest-numbered
+    /// level `k` (see [`Program::span_level`]).
+    #[inline(always)]
+    fn span_taps(pts: &[Option<[f32; 2]>; 4], k: i32, b: i32, bicubic: bool) -> ([i32; 2], [Option<[Axis; 2]>; 4]) {
+        // 2^−k, exactly (k is a level number, far inside the exponent range)
+        let s = f32::from_bits(((127 - k) as u32) << 23);
+        let mut q = [None; 4];
+        for i in 0..4 {
+            if let Some(p) = pts[i] {
+                q[i] = Some([p[0] * s - 0.5, p[1] * s - 0.5]);
+            }
+        }
+        let mut origin = [0i32; 2];
+        for a in 0..2 {
+            let (mut lo, mut hi, mut any) = (i32::MAX, i32::MIN, false);
+            for q in q.iter().flatten() {
+                let f = floor(q[a]) as i32;
+                lo = lo.min(f);
+                hi = hi.max(f);
+                any = true;
+            }
+            if !any {
+                (lo, hi) = (0, 0);
+            }
+            origin[a] = if bicubic { lo - 1 + (hi - lo + 4 - b).max(0) / 2 } else { lo };
+        }
+        let mut taps = [None; 4];
+        for i in 0..4 {
+            if let Some(q) = q[i] {
+                taps[i] = Some([axis(q[0], bicubic, origin[0], b), axis(q[1], bicubic, origin[1], b)]);
+            }
+        }
+        (origin, taps)
+    }
+
+    /// Filters the points of a span at finest-numbered level `k` (virtual above the coarsest).
     #[inline(always)]
     fn span_level(
         &self,
@@ -369,19 +421,7 @@ impl Program<'_> {
         banks: Option<&mut BankModel>,
     ) -> [[f32; 4]; 4] {
         let last = self.pages.levels as i32 - 1;
-        let read = |k: i32| -> ([i32; 2], [Option<[Axis; 2]>; 4]) {
-            let s = (-(k as f32)).exp2();
-            let q = pts.map(|p| p.map(|p| [p[0] * s - 0.5, p[1] * s - 0.5]));
-            let mut origin = [0i32; 2];
-            for (a, o) in origin.iter_mut().enumerate() {
-                let lo = q.iter().flatten().map(|q| floor(q[a]) as i32).min().unwrap_or(0);
-                let hi = q.iter().flatten().map(|q| floor(q[a]) as i32).max().unwrap_or(0);
-                *o = if bicubic { lo - 1 + (hi - lo + 4 - b).max(0) / 2 } else { lo };
-            }
-            let taps = q.map(|q| q.map(|q| [axis(q[0], bicubic, origin[0], b), axis(q[1], bicubic, origin[1], b)]));
-            (origin, taps)
-        };
-        let (origin, taps) = read(k);
+        let (origin, taps) = Self::span_taps(pts, k, b, bicubic);
         if let Some(banks) = banks {
             let n = if bicubic { 4 } else { 2 };
             let mut texels = Vec::with_capacity(64);
@@ -395,23 +435,27 @@ impl Program<'_> {
             banks.record(k as usize, [origin[0] as i64, origin[1] as i64], &texels);
         }
         // a virtual level takes the coarsest level's values
-        let (z, taps) = if k > last { (0u32, read(last).1) } else { ((last - k) as u32, taps) };
-        taps.map(|t| {
-            let Some([ax, ay]) = t else { return [0.0; 4] };
+        let (z, taps) =
+            if k > last { (0u32, Self::span_taps(pts, last, b, bicubic).1) } else { ((last - k) as u32, taps) };
+        let mut out = [[0.0f32; 4]; 4];
+        let mut memo = ([-1; 3], None);
+        for (o, t) in out.iter_mut().zip(&taps) {
+            let Some([ax, ay]) = t else { continue };
             if !bicubic {
                 let c = [
-                    self.texel(z, ax.i[0], ay.i[0]),
-                    self.texel(z, ax.i[1], ay.i[0]),
-                    self.texel(z, ax.i[0], ay.i[1]),
-                    self.texel(z, ax.i[1], ay.i[1]),
+                    self.texel_memo(&mut memo, z, ax.i[0], ay.i[0]),
+                    self.texel_memo(&mut memo, z, ax.i[1], ay.i[0]),
+                    self.texel_memo(&mut memo, z, ax.i[0], ay.i[1]),
+                    self.texel_memo(&mut memo, z, ax.i[1], ay.i[1]),
                 ];
-                return lerp2(c, ax.w[1], ay.w[1]);
+                *o = lerp2(c, ax.w[1], ay.w[1]);
+                continue;
             }
             let mut acc = [0.0f32; 4];
             let (mut lo, mut hi) = ([f32::INFINITY; 4], [f32::NEG_INFINITY; 4]);
             for j in 0..4 {
                 for i in 0..4 {
-                    let c = self.texel(z, ax.i[i], ay.i[j]);
+                    let c = self.texel_memo(&mut memo, z, ax.i[i], ay.i[j]);
                     let w = ax.w[i] * ay.w[j];
                     for ch in 0..4 {
                         acc[ch] += c[ch] * w;
@@ -420,8 +464,11 @@ impl Program<'_> {
                     }
                 }
             }
-            std::array::from_fn(|ch| acc[ch].clamp(lo[ch], hi[ch]))
-        })
+            for ch in 0..4 {
+                o[ch] = acc[ch].clamp(lo[ch], hi[ch]);
+            }
+        }
+        out
     }
 
     /// The span sampler over the four points of a span (None: no ground there).
@@ -454,8 +501,9 @@ impl Program<'_> {
         }
         // rounding guard: the finer level's bilinear footprint must fit B texels
         let fits = |k: i32| {
-            let s = (-(k as f32)).exp2();
-            (0..2).all(|a| floor(hi[a] * s - 0.5) - floor(lo[a] * s - 0.5) + 2.0 <= b as f32)
+            let s = f32::from_bits(((127 - k) as u32) << 23);
+            floor(hi[0] * s - 0.5) - floor(lo[0] * s - 0.5) + 2.0 <= b as f32
+                && floor(hi[1] * s - 0.5) - floor(lo[1] * s - 0.5) + 2.0 <= b as f32
         };
         let mut raised = false;
         while k < cap && !fits(k) {
@@ -472,7 +520,13 @@ impl Program<'_> {
             return c0;
         }
         let c1 = self.span_level(&pts, k + 1, b, bicubic, banks);
-        std::array::from_fn(|i| std::array::from_fn(|ch| c0[i][ch] + (c1[i][ch] - c0[i][ch]) * g))
+        let mut out = c0;
+        for i in 0..4 {
+            for ch in 0..4 {
+                out[i][ch] = c0[i][ch] + (c1[i][ch] - c0[i][ch]) * g;
+            }
+        }
+        out
     }
 
     /// Linear RGB of a flat-ground pixel from its texture colour.
@@ -498,14 +552,19 @@ impl Program<'_> {
     /// Linear RGB of the flat-ground span whose top-left pixel is (px, py).
     #[inline(always)]
     fn shade_flat_span(&self, px: u32, py: u32, banks: Option<&mut BankModel>) -> [[f32; 3]; 4] {
-        let pts: [Option<[f32; 2]>; 4] = std::array::from_fn(|i| {
-            self.ground((px + (i as u32 & 1)) as f32 + 0.5, (py + (i as u32 >> 1)) as f32 + 0.5)
-        });
+        let mut pts: [Option<[f32; 2]>; 4] = [None; 4];
+        for (i, p) in pts.iter_mut().enumerate() {
+            *p = self.ground((px + (i as u32 & 1)) as f32 + 0.5, (py + (i as u32 >> 1)) as f32 + 0.5);
+        }
         let c = self.span(pts, self.u.sampler(), banks);
-        std::array::from_fn(|i| match pts[i] {
-            Some(_) => Self::over_ground(c[i]),
-            None => sky((py + (i as u32 >> 1)) as f32 + 0.5, self.u.sizes[1] as f32),
-        })
+        let mut out = [[0.0f32; 3]; 4];
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = match pts[i] {
+                Some(_) => Self::over_ground(c[i]),
+                None => sky((py + (i as u32 >> 1)) as f32 + 0.5, self.u.sizes[1] as f32),
+            };
+        }
+        out
     }
 }
 
