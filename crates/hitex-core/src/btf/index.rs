@@ -1291,6 +1291,35 @@ mod tests {
         assert!(seam < 1.5 * interior, "pooled seam error {seam} vs interior {interior}");
     }
 
+    /// The share of a map's texels that continue one plain tiling of the
+    /// `sw`×`sh` sample: the most common offset (source − position, modulo
+    /// the sample) over all texels. 1 for a plain tiling; low when the map
+    /// is made of many differently placed patches.
+    fn tiling_share(map: &IndexMap, sw: u32, sh: u32) -> f32 {
+        let mut counts = std::collections::HashMap::new();
+        for y in 0..map.height {
+            for x in 0..map.width {
+                let [u, v] = map.get(x, y);
+                let o = ((u as i64 - x as i64).rem_euclid(sw as i64), (v as i64 - y as i64).rem_euclid(sh as i64));
+                *counts.entry(o).or_insert(0u32) += 1;
+            }
+        }
+        counts.values().copied().max().unwrap_or(0) as f32 / (map.width * map.height) as f32
+    }
+
+    #[test]
+    fn synthesized_maps_are_not_a_plain_tiling() {
+        // a plain tiling is perfectly coherent and seamless, so the seam
+        // measures above cannot tell it from synthesis: measure repetition
+        assert_eq!(tiling_share(&IndexMap::identity(8, 8, 48, 40), 8, 8), 1.0);
+        let btf = corduroy();
+        for seed in 0..6 {
+            let map = synthesize_index(&btf, &opts(48, 40, seed), &|_, _| {}).unwrap();
+            let share = tiling_share(&map, 8, 8);
+            assert!(share < 0.25, "seed {seed}: {:.0} % of the map continues one tiling", share * 100.0);
+        }
+    }
+
     #[test]
     fn identity_of_a_tileable_sample_is_coherent() {
         let btf = corduroy();

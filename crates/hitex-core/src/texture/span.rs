@@ -1096,6 +1096,28 @@ mod tests {
         // per-level padding of the sides to multiples of 3 (258² for 256², …) costs ~2 %
         assert!(m3.ratio() >= 0.25 && m3.ratio() < 0.26, "{}", m3.ratio());
         assert!((m4.ratio() - 0.25).abs() < 1e-3, "{}", m4.ratio());
+        // independently of the formula: lay every texel of every level out
+        // by the banks' addressing (bank_of, address_in_bank); banks work in
+        // lockstep, so each holds the largest extent any bank needs
+        for (scheme, m) in [(SpanScheme::Banks3x3, m3), (SpanScheme::Banks4x4, m4)] {
+            let b = scheme.side();
+            let mut bytes = 0u64;
+            for l in pyr.levels() {
+                let mut extent = [[0i64; 2]; 16];
+                for y in 0..l.height() as i64 {
+                    for x in 0..l.width() as i64 {
+                        let [i, j] = bank_of([x, y], b);
+                        let a = address_in_bank([x, y], b);
+                        let e = &mut extent[j * b + i];
+                        *e = [e[0].max(a[0] + 1), e[1].max(a[1] + 1)];
+                    }
+                }
+                let (ex, ey) = (extent.iter().map(|e| e[0]).max().unwrap(), extent.iter().map(|e| e[1]).max().unwrap());
+                bytes += (b * b) as u64 * (ex * ey) as u64 * 4;
+            }
+            assert_eq!(bytes, m.span_bytes, "{scheme:?}: the addressing needs {bytes} bytes");
+            assert_eq!(m.conventional_bytes, 4 * m.copy_bytes);
+        }
         // sides that are multiples of 3 need no padding
         let m = memory_report(&[(9, 6), (3, 3)], 4, SpanScheme::Banks3x3);
         assert_eq!(m.span_bytes, m.copy_bytes);
