@@ -22,6 +22,9 @@
 //! conflicts. Levels coarser than the pyramid's coarsest are virtual (the
 //! bank access is that of the continued pyramid, the value the coarsest's).
 
+// lane loops index several arrays by the same lane, as the lane code reads
+#![allow(clippy::needless_range_loop)]
+
 use super::raster::{QuadShader, Target, rasterize};
 use super::simd::{LANES, Lanes};
 use crate::terrain::{FlyGround, FlyMesh, FlyPages, FlySampler, FlyUniform, GROUND, GenericTexture, MAP, sky};
@@ -189,13 +192,13 @@ impl Program<'_> {
     /// row position `py`), as [`Program::ground`] lane by lane: map x, map y
     /// and a bit per lane with ground under it.
     #[inline(always)]
-    fn ground_lanes(&self, px: &Lanes, py: f32) -> (Lanes, Lanes, u32) {
+    fn ground_lanes(&self, px: &Lanes, py: &Lanes) -> (Lanes, Lanes, u32) {
         let u = &self.u;
         let (w, h) = (u.sizes[0] as f32, u.sizes[1] as f32);
         let tan_h = u.eye[3];
-        let sy = (1.0 - 2.0 * py / h) * tan_h * h / w;
         let (mut gx, mut gy, mut ok) = ([0.0f32; LANES], [0.0f32; LANES], 0u32);
         for i in 0..LANES {
+            let sy = (1.0 - 2.0 * py[i] / h) * tan_h * h / w;
             let sx = (2.0 * px[i] / w - 1.0) * tan_h;
             let d0 = u.fwd[0] + u.right[0] * sx + u.up[0] * sy;
             let d1 = u.fwd[1] + u.right[1] * sx + u.up[1] * sy;
@@ -268,6 +271,224 @@ impl Program<'_> {
         })
     }
 
+    /// Four flat-ground spans on one block: the 8×2 pixels from column `x0`
+    /// of rows `py` and `py + 1`, lanes in quad order (span `s` on lanes
+    /// 4s … 4s + 3: (0,0) (1,0) (0,1) (1,1)). The same operations as
+    /// [`Program::shade_flat_span`] without bank statistics, in the same
+    /// order: rays and filters on lanes, each span's level on its own, the
+    /// texel reads lane by lane.
+    #[inline(always)]
+    fn shade_spans_lanes(&self, x0: u32, py: u32) -> [Lanes; 3] {
+        let px: Lanes = std::array::from_fn(|i| (x0 + 2 * (i as u32 / 4) + (i as u32 & 1)) as f32 + 0.5);
+        let pyl: Lanes = std::array::from_fn(|i| (py + ((i as u32 >> 1) & 1)) as f32 + 0.5);
+        let (gx, gy, ok) = self.ground_lanes(&px, &pyl);
+        let h = self.u.sizes[1] as f32;
+        let skies = [sky(py as f32 + 0.5, h), sky((py + 1) as f32 + 0.5, h)];
+        let mut out = [[0.0f32; LANES]; 3];
+        for i in 0..LANES {
+            for ch in 0..3 {
+                out[ch][i] = skies[(i >> 1) & 1][ch];
+            }
+        }
+        if ok == 0 {
+            return out;
+        }
+        let sampler = self.u.sampler();
+        let b = sampler.banks() as i32;
+        let bicubic = sampler == FlySampler::Bicubic;
+        let cap = self.pages.levels as i32 - 1 + VIRTUAL;
+        // each span's level from its footprint, as Program::span
+        let (mut ks, mut gs, mut live) = ([0i32; 4], [0.0f32; 4], 0u32);
+        for s in 0..4 {
+            let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+            for i in 4 * s..4 * s + 4 {
+                if ok >> i & 1 == 1 {
+                    lo = [lo[0].min(gx[i]), lo[1].min(gy[i])];
+                    hi = [hi[0].max(gx[i]), hi[1].max(gy[i])];
+                }
+            }
+            if lo[0] > hi[0] {
+                continue;
+            }
+            live |= 0xf << (4 * s);
+            let e = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+            let lam = (2.0 * e / (b - 2) as f32).log2();
+            let (mut k, mut g) = (0i32, 0.0f32);
+            if lam > 0.0 {
+                let f = floor(lam);
+                (k, g) = if f >= cap as f32 { (cap, 0.0) } else { (f as i32, lam - f) };
+            }
+            let fits = |k: i32| {
+                let sc = f32::from_bits(((127 - k) as u32) << 23);
+                floor(hi[0] * sc - 0.5) - floor(lo[0] * sc - 0.5) + 2.0 <= b as f32
+                    && floor(hi[1] * sc - 0.5) - floor(lo[1] * sc - 0.5) + 2.0 <= b as f32
+            };
+            while k < cap && !fits(k) {
+                k += 1;
+            }
+            (ks[s], gs[s]) = (k, g);
+        }
+        let wanted = ok & live;
+        let c0 = self.spans_level_lanes(&gx, &gy, wanted, &ks, b, bicubic);
+        let mut second = 0u32;
+        for s in 0..4 {
+            if gs[s] > 0.0 {
+                second |= 0xf << (4 * s);
+            }
+        }
+        let second = second & wanted;
+        let c1 =
+            if second != 0 { self.spans_level_lanes(&gx, &gy, second, &ks.map(|k| k + 1), b, bicubic) } else { c0 };
+        for i in 0..LANES {
+            if wanted >> i & 1 == 0 {
+                continue;
+            }
+            let g = gs[i / 4];
+            let mut c = [c0[0][i], c0[1][i], c0[2][i], c0[3][i]];
+            if second >> i & 1 == 1 {
+                for ch in 0..4 {
+                    c[ch] = c0[ch][i] + (c1[ch][i] - c0[ch][i]) * g;
+                }
+            }
+            let o = Self::over_ground(c);
+            for ch in 0..3 {
+                out[ch][i] = o[ch];
+            }
+        }
+        out
+    }
+
+    /// [`Program::span_level`] for the four spans of a block at levels
+    /// `ks[s]` (finest-numbered, virtual above the coarsest), lanes in
+    /// `wanted` only; linear RGBA.
+    #[inline(always)]
+    fn spans_level_lanes(
+        &self,
+        gx: &Lanes,
+        gy: &Lanes,
+        wanted: u32,
+        ks: &[i32; 4],
+        b: i32,
+        bicubic: bool,
+    ) -> [Lanes; 4] {
+        let last = self.pages.levels as i32 - 1;
+        // a virtual level reads the coarsest level with the coarsest's taps
+        let (mut qx, mut qy) = ([0.0f32; LANES], [0.0f32; LANES]);
+        for i in 0..LANES {
+            let k = ks[i / 4].min(last);
+            let sc = f32::from_bits(((127 - k) as u32) << 23);
+            qx[i] = gx[i] * sc - 0.5;
+            qy[i] = gy[i] * sc - 0.5;
+        }
+        let (mut fx, mut fy) = ([0i32; LANES], [0i32; LANES]);
+        let (mut tx, mut ty) = ([0.0f32; LANES], [0.0f32; LANES]);
+        for i in 0..LANES {
+            let (a, c) = (floor(qx[i]), floor(qy[i]));
+            tx[i] = qx[i] - a;
+            ty[i] = qy[i] - c;
+            fx[i] = if wanted >> i & 1 == 1 { a as i32 } else { 0 };
+            fy[i] = if wanted >> i & 1 == 1 { c as i32 } else { 0 };
+        }
+        // each span's block origin from its points (bicubic taps stay inside it)
+        let mut origin = [[0i32; 2]; 4];
+        for s in 0..4 {
+            let (mut lo, mut hi, mut any) = ([i32::MAX; 2], [i32::MIN; 2], false);
+            for i in 4 * s..4 * s + 4 {
+                if wanted >> i & 1 == 1 {
+                    lo = [lo[0].min(fx[i]), lo[1].min(fy[i])];
+                    hi = [hi[0].max(fx[i]), hi[1].max(fy[i])];
+                    any = true;
+                }
+            }
+            if !any {
+                continue;
+            }
+            for a in 0..2 {
+                origin[s][a] = if bicubic { lo[a] - 1 + (hi[a] - lo[a] + 4 - b).max(0) / 2 } else { lo[a] };
+            }
+        }
+        let mut out = [[0.0f32; LANES]; 4];
+        let mut memo = ([-1; 3], None);
+        if !bicubic {
+            let mut c = [[[0.0f32; LANES]; 4]; 4];
+            for i in 0..LANES {
+                if wanted >> i & 1 == 0 {
+                    continue;
+                }
+                let k = ks[i / 4];
+                let z = if k > last { 0 } else { (last - k) as u32 };
+                let (x, y) = (fx[i], fy[i]);
+                let q = [
+                    self.texel_memo(&mut memo, z, x, y),
+                    self.texel_memo(&mut memo, z, x + 1, y),
+                    self.texel_memo(&mut memo, z, x, y + 1),
+                    self.texel_memo(&mut memo, z, x + 1, y + 1),
+                ];
+                for tap in 0..4 {
+                    for ch in 0..4 {
+                        c[tap][ch][i] = q[tap][ch];
+                    }
+                }
+            }
+            for ch in 0..4 {
+                for i in 0..LANES {
+                    let top = c[0][ch][i] + (c[1][ch][i] - c[0][ch][i]) * tx[i];
+                    let bot = c[2][ch][i] + (c[3][ch][i] - c[2][ch][i]) * tx[i];
+                    out[ch][i] = top + (bot - top) * ty[i];
+                }
+            }
+            return out;
+        }
+        // Catmull-Rom taps clamped into the span's B×B block
+        let mut c = [[[0.0f32; LANES]; 4]; 16];
+        for i in 0..LANES {
+            if wanted >> i & 1 == 0 {
+                continue;
+            }
+            let k = ks[i / 4];
+            let z = if k > last { 0 } else { (last - k) as u32 };
+            let o = origin[i / 4];
+            for j in 0..4 {
+                let y = (fy[i] + j as i32 - 1).clamp(o[1], o[1] + b - 1);
+                for t in 0..4 {
+                    let x = (fx[i] + t as i32 - 1).clamp(o[0], o[0] + b - 1);
+                    let q = self.texel_memo(&mut memo, z, x, y);
+                    for ch in 0..4 {
+                        c[j * 4 + t][ch][i] = q[ch];
+                    }
+                }
+            }
+        }
+        let (wx, wy): ([[f32; LANES]; 4], [[f32; LANES]; 4]) = {
+            let (mut wx, mut wy) = ([[0.0f32; LANES]; 4], [[0.0f32; LANES]; 4]);
+            for i in 0..LANES {
+                let (a, c) = (catmull_rom(tx[i]), catmull_rom(ty[i]));
+                for d in 0..4 {
+                    wx[d][i] = a[d];
+                    wy[d][i] = c[d];
+                }
+            }
+            (wx, wy)
+        };
+        for ch in 0..4 {
+            let (mut acc, mut lo, mut hi) = ([0.0f32; LANES], [f32::INFINITY; LANES], [f32::NEG_INFINITY; LANES]);
+            for j in 0..4 {
+                for t in 0..4 {
+                    let v = &c[j * 4 + t][ch];
+                    for i in 0..LANES {
+                        acc[i] += v[i] * (wx[t][i] * wy[j][i]);
+                        lo[i] = lo[i].min(v[i]);
+                        hi[i] = hi[i].max(v[i]);
+                    }
+                }
+            }
+            for i in 0..LANES {
+                out[ch][i] = acc[i].clamp(lo[i], hi[i]);
+            }
+        }
+        out
+    }
+
     /// Linear RGB of 16 flat-ground pixels of row `py` from column `x0`, per
     /// pixel: the same operations as [`Program::shade_flat`] in the same
     /// order, the ray, footprint, level and blends on lane vectors, the
@@ -277,9 +498,9 @@ impl Program<'_> {
         let px: Lanes = std::array::from_fn(|i| (x0 + i as u32) as f32 + 0.5);
         let px1: Lanes = std::array::from_fn(|i| px[i] + 1.0);
         let y = py as f32 + 0.5;
-        let (gx, gy, ok0) = self.ground_lanes(&px, y);
-        let (gx1, gy1, ok1) = self.ground_lanes(&px1, y);
-        let (gx2, gy2, ok2) = self.ground_lanes(&px, y + 1.0);
+        let (gx, gy, ok0) = self.ground_lanes(&px, &[y; LANES]);
+        let (gx1, gy1, ok1) = self.ground_lanes(&px1, &[y; LANES]);
+        let (gx2, gy2, ok2) = self.ground_lanes(&px, &[y + 1.0; LANES]);
         let ok = ok0 & ok1 & ok2;
         let sky = sky(y, self.u.sizes[1] as f32);
         if ok == 0 {
@@ -549,7 +770,9 @@ impl Program<'_> {
         Self::over_ground(self.trilinear(p, foot))
     }
 
-    /// Linear RGB of the flat-ground span whose top-left pixel is (px, py).
+    /// Linear RGB of the flat-ground span whose top-left pixel is (px, py),
+    /// recording its bank traffic in `banks` (the statistics pass; the
+    /// frames without statistics run [`Program::shade_spans_lanes`]).
     #[inline(always)]
     fn shade_flat_span(&self, px: u32, py: u32, banks: Option<&mut BankModel>) -> [[f32; 3]; 4] {
         let mut pts: [Option<[f32; 2]>; 4] = [None; 4];
@@ -618,6 +841,25 @@ impl pulp::WithSimd for FlatSpanRows<'_, '_> {
         let enc = hitex_core::texture::srgb_encoder();
         let w = prog.u.sizes[0];
         let two = pair.len() > (w * 4) as usize;
+        if banks.is_none() {
+            // four spans a block, on lanes
+            for bx in 0..w.div_ceil(8) {
+                let c = prog.shade_spans_lanes(bx * 8, py);
+                for i in 0..LANES {
+                    let (x, y) = (bx * 8 + 2 * (i as u32 / 4) + (i as u32 & 1), (i as u32 >> 1) & 1);
+                    if x < w && (y == 0 || two) {
+                        let o = ((y * w + x) * 4) as usize;
+                        pair[o..o + 4].copy_from_slice(&[
+                            enc.encode(c[0][i]),
+                            enc.encode(c[1][i]),
+                            enc.encode(c[2][i]),
+                            255,
+                        ]);
+                    }
+                }
+            }
+            return;
+        }
         for sx in 0..w.div_ceil(2) {
             let c = prog.shade_flat_span(sx * 2, py, banks.as_deref_mut());
             for (i, c) in c.iter().enumerate() {
@@ -824,8 +1066,6 @@ fn render_mesh(prog: &Program<'_>, mesh: &FlyMesh, sampler: FlySampler, stats: b
 
 #[cfg(test)]
 mod tests {
-    // a lane's pixel position comes from the lane index
-    #![allow(clippy::needless_range_loop)]
     use super::*;
     use crate::terrain::FlyCamera;
     use std::collections::HashMap;
@@ -864,6 +1104,57 @@ mod tests {
             }
         }
         FlyPages { levels, per_side: per, origins, slots, maps }
+    }
+
+    #[test]
+    fn span_lanes_equal_the_span_program() {
+        let pages = pages();
+        let views = [
+            (1024.0, 1024.0, 300.0, 20.0, 20.0),
+            (700.0, 1500.0, 80.0, 60.0, 300.0),
+            (1200.0, 900.0, 900.0, 80.0, 135.0),
+            // high enough that spans read virtual levels beyond the coarsest
+            (1024.0, 1024.0, 3000.0, 10.0, 10.0),
+        ];
+        for sampler in [FlySampler::Span3, FlySampler::Span4, FlySampler::Bicubic] {
+            for (n, &(x, y, alt, pitch, heading)) in views.iter().enumerate() {
+                let cam = FlyCamera::new(x, y, alt, pitch, heading, 50.0);
+                // odd sizes: the last span column and row reach past the frame
+                let (w, h) = (101u32, 61u32);
+                let u = FlyUniform::new(&cam, w, h, pages.levels, pages.per_side).with_sampler(sampler);
+                let prog = bind(&u, &pages, None).unwrap();
+                let mut seen = std::collections::HashSet::new();
+                for py in (0..h).step_by(2) {
+                    for x0 in (0..w).step_by(8) {
+                        let lanes = prog.shade_spans_lanes(x0, py);
+                        for s in 0..4u32 {
+                            let want = prog.shade_flat_span(x0 + 2 * s, py, None);
+                            for q in 0..4usize {
+                                let i = 4 * s as usize + q;
+                                let got = [lanes[0][i], lanes[1][i], lanes[2][i]];
+                                assert_eq!(
+                                    got.map(f32::to_bits),
+                                    want[q].map(f32::to_bits),
+                                    "{} view {n}, span ({}, {py}) pixel {q}",
+                                    sampler.name(),
+                                    x0 + 2 * s
+                                );
+                                seen.insert(want[q].map(f32::to_bits));
+                            }
+                        }
+                    }
+                }
+                assert!(seen.len() > 100, "{} view {n}: {} colours", sampler.name(), seen.len());
+                if n == 3 {
+                    // the far spans of this view read levels past the coarsest (virtual)
+                    let mut m = BankModel::new(SpanScheme::Banks4x4);
+                    for x0 in (0..w).step_by(2) {
+                        prog.shade_flat_span(x0, 0, Some(&mut m));
+                    }
+                    assert!(m.mean_level() > (pages.levels - 1) as f64, "mean level {}", m.mean_level());
+                }
+            }
+        }
     }
 
     #[test]
