@@ -7,6 +7,7 @@
 use crate::{CliError, open_renderer, parse_size};
 use hitex_core::scene::{Scene, showcase_scene};
 use hitex_core::texture::Filter;
+use hitex_render::cpu::simd::SimdLevel;
 use hitex_render::{AnyRenderer, BackendChoice, Job, PreparedScene, Renderer, compare_rgba};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
@@ -24,6 +25,37 @@ pub enum Backends {
     Cpu,
     /// GPU only.
     Gpu,
+}
+
+/// The CPU backend's SIMD levels a benchmark runs.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct SimdArg {
+    /// SIMD level of the CPU backend: one of this processor's (avx512, avx2,
+    /// sse4, neon, scalar), or `all` for a scaling table over every level it
+    /// runs (widest first; HITEX_SIMD also sets one)
+    #[arg(long, value_name = "LEVEL|all")]
+    pub simd: Option<String>,
+}
+
+impl SimdArg {
+    /// The levels to run, widest first (none: the level detected or set by
+    /// `HITEX_SIMD`, with each program's own cap); an error names the levels
+    /// this processor runs.
+    pub fn levels(&self) -> Result<Vec<SimdLevel>, CliError> {
+        let runs = SimdLevel::available_levels();
+        let names = || runs.iter().map(|l| l.name()).collect::<Vec<_>>().join(", ");
+        match self.simd.as_deref().map(str::trim) {
+            None => Ok(Vec::new()),
+            Some(a) if a.eq_ignore_ascii_case("all") => Ok(runs),
+            Some(n) => match SimdLevel::from_name(n) {
+                Some(l) if l.available() => Ok(vec![l]),
+                Some(l) => Err(CliError::Input(format!("--simd {n}: this processor lacks {l}; it runs {}", names()))),
+                None => {
+                    Err(CliError::Input(format!("--simd {n} names no level; this processor runs {} (or all)", names())))
+                }
+            },
+        }
+    }
 }
 
 /// Arguments of `hitex bench texture`.
@@ -44,6 +76,8 @@ pub struct TextureArgs {
     /// Also write a bar chart (SVG) of the medians.
     #[arg(long)]
     pub chart: Option<PathBuf>,
+    #[command(flatten)]
+    pub simd: SimdArg,
 }
 
 /// One measured (case, backend) pair.
@@ -69,6 +103,9 @@ pub struct Row {
     pub mpix_s: f64,
     /// The CPU backend's SIMD level ("" for the GPU).
     pub simd: String,
+    /// CPU rows: whether the first frame is the same image, bit for bit, as
+    /// the first CPU row's of the case (the levels must agree; null for the GPU).
+    pub same_image: Option<bool>,
 }
 
 /// GPU median over CPU median for a case.
@@ -147,6 +184,7 @@ pub fn run_cases(
     frames: u32,
     size: (u32, u32),
     which: Backends,
+    levels: &[SimdLevel],
     quiet: bool,
 ) -> Result<Report, CliError> {
     let prepared: Vec<(String, PreparedScene)> =
@@ -155,25 +193,33 @@ pub fn run_cases(
         .iter()
         .map(|(n, p)| (n.clone(), orbit_case(p.camera, move |camera| Job::Scene { scene: p, camera })))
         .collect();
-    run_case_fns(name, &fns, frames, size, which, quiet)
+    run_case_fns(name, &fns, frames, size, which, levels, quiet)
 }
 
-/// Like [`run_cases`] for arbitrary frame functions.
+/// Like [`run_cases`] for arbitrary frame functions. The CPU backend runs
+/// once per SIMD level in `levels` (its rows name the level; ratios and
+/// parity are against the first).
 pub fn run_case_fns(
     name: &str,
     cases: &[(String, CaseFn)],
     frames: u32,
     (w, h): (u32, u32),
     which: Backends,
+    levels: &[SimdLevel],
     quiet: bool,
 ) -> Result<Report, CliError> {
-    let mut backends: Vec<(&str, AnyRenderer)> = Vec::new();
+    let mut backends: Vec<(&str, AnyRenderer, Option<SimdLevel>)> = Vec::new();
     if which != Backends::Gpu {
-        backends.push(("cpu", open_renderer(BackendChoice::Cpu)?));
+        if levels.is_empty() {
+            backends.push(("cpu", open_renderer(BackendChoice::Cpu)?, None));
+        }
+        for &l in levels {
+            backends.push(("cpu", open_renderer(BackendChoice::Cpu)?, Some(l)));
+        }
     }
     if which != Backends::Cpu {
         match open_renderer(BackendChoice::Gpu) {
-            Ok(g) => backends.push(("gpu", g)),
+            Ok(g) => backends.push(("gpu", g, None)),
             Err(CliError::Internal(m)) | Err(CliError::Input(m)) if which == Backends::Both => {
                 eprintln!("hitex bench: GPU backend skipped: {m}");
             }
@@ -183,14 +229,29 @@ pub fn run_case_fns(
     let frames = frames.max(1);
     let mut rows = Vec::new();
     let mut parity = Vec::new();
+    let before = hitex_render::cpu::simd::level();
     for (case, job) in cases {
         let mut first_frames = Vec::new();
-        for (kind, r) in backends.iter_mut() {
+        let mut level_frames: Vec<(SimdLevel, hitex_render::Frame)> = Vec::new();
+        for (kind, r, level) in backends.iter_mut() {
+            if let Some(l) = level {
+                hitex_render::cpu::simd::set_level(*l).map_err(CliError::Internal)?;
+            }
             let pb = progress(frames as u64, quiet);
-            pb.set_prefix(format!("{case} {kind}"));
+            pb.set_prefix(match level {
+                Some(l) if levels.len() > 1 => format!("{case} {kind} {l}"),
+                _ => format!("{case} {kind}"),
+            });
             // warm-up: uploads, shader compilation, caches
             let f0 = r.render(&job(0, frames, w, h)?, w, h)?.frame;
-            first_frames.push(f0);
+            if *kind == "cpu" {
+                if level_frames.is_empty() {
+                    first_frames.push(f0.clone());
+                }
+                level_frames.push((level.unwrap_or(before), f0));
+            } else {
+                first_frames.push(f0);
+            }
             let mut times = Vec::new();
             for i in 0..frames {
                 let t = Instant::now();
@@ -211,7 +272,13 @@ pub fn run_case_fns(
                 ms_median: ms,
                 fps_median: 1e3 / ms,
                 mpix_s: w as f64 * h as f64 / (ms * 1e3),
-                simd: if *kind == "cpu" { hitex_render::cpu::simd::level().to_string() } else { String::new() },
+                simd: match (*kind, level) {
+                    ("cpu", Some(l)) => l.to_string(),
+                    ("cpu", None) => job(0, frames, w, h)?.cpu_simd_level().to_string(),
+                    _ => String::new(),
+                },
+                same_image: (*kind == "cpu")
+                    .then(|| level_frames.first().is_some_and(|f| level_frames.last().is_some_and(|l| l.1 == f.1))),
             });
         }
         if first_frames.len() == 2 {
@@ -219,6 +286,7 @@ pub fn run_case_fns(
             parity.push(Parity { case: case.clone(), mean_abs: d.mean_abs, p99: d.p99 });
         }
     }
+    hitex_render::cpu::simd::set_level(before).map_err(CliError::Internal)?;
     let mut ratios = Vec::new();
     for (case, _) in cases {
         let cpu = rows.iter().find(|r| &r.case == case && r.backend == "cpu");
@@ -232,17 +300,28 @@ pub fn run_case_fns(
 
 /// Prints a report as a table.
 pub fn print_table(r: &Report) {
-    println!("{:<22} {:<4} {:<44} {:>10} {:>8} {:>8} {:>8}", "case", "be", "adapter", "size", "ms", "fps", "Mpix/s");
+    println!(
+        "{:<22} {:<4} {:<44} {:>10} {:>8} {:>8} {:>8} {:>7}",
+        "case", "be", "adapter", "size", "ms", "fps", "Mpix/s", "simd"
+    );
+    let levels: Vec<&str> = {
+        let mut v: Vec<&str> = r.rows.iter().filter(|x| x.backend == "cpu").map(|x| x.simd.as_str()).collect();
+        v.dedup();
+        v.sort_by_key(|n| std::cmp::Reverse(SimdLevel::from_name(n).map_or(0, |l| l.width())));
+        v.dedup();
+        v
+    };
     for row in &r.rows {
         println!(
-            "{:<22} {:<4} {:<44} {:>10} {:>8.2} {:>8.1} {:>8.1}",
+            "{:<22} {:<4} {:<44} {:>10} {:>8.2} {:>8.1} {:>8.1} {:>7}",
             row.case,
             row.backend,
             row.adapter,
             format!("{}x{}", row.width, row.height),
             row.ms_median,
             row.fps_median,
-            row.mpix_s
+            row.mpix_s,
+            row.simd
         );
     }
     for q in &r.ratios {
@@ -255,6 +334,41 @@ pub fn print_table(r: &Report) {
     }
     for p in &r.parity {
         println!("{:<22} cpu vs gpu first frame: mean |Δ| {:.3}, p99 {} (8-bit steps)", p.case, p.mean_abs, p.p99);
+    }
+    if levels.len() > 1 {
+        print_scaling(r, &levels);
+    }
+}
+
+/// The CPU rows of several SIMD levels side by side: median ms per level,
+/// the widest level's speed-up over the narrowest, and whether every level
+/// rendered the same image.
+fn print_scaling(r: &Report, levels: &[&str]) {
+    print!("{:<22}", "cpu ms by SIMD level");
+    for l in levels {
+        print!(" {l:>9}");
+    }
+    println!("  {:>9}  same image", "speed-up");
+    let mut cases: Vec<&str> = r.rows.iter().map(|x| x.case.as_str()).collect();
+    cases.dedup();
+    for case in cases {
+        let ms: Vec<Option<&Row>> = levels
+            .iter()
+            .map(|l| r.rows.iter().find(|x| x.case == case && x.backend == "cpu" && x.simd == *l))
+            .collect();
+        print!("{case:<22}");
+        for m in &ms {
+            match m {
+                Some(row) => print!(" {:>9.2}", row.ms_median),
+                None => print!(" {:>9}", "-"),
+            }
+        }
+        let speedup = match (ms.first().copied().flatten(), ms.last().copied().flatten()) {
+            (Some(a), Some(b)) => format!("{:.2}", b.ms_median / a.ms_median),
+            _ => "-".into(),
+        };
+        let same = ms.iter().flatten().all(|x| x.same_image != Some(false));
+        println!("  {speedup:>9}  {}", if same { "yes" } else { "NO" });
     }
 }
 
@@ -292,6 +406,7 @@ pub fn write_chart(r: &Report, path: &std::path::Path) -> Result<(), CliError> {
 
 /// `hitex bench texture`.
 pub fn texture(args: TextureArgs) -> Result<(), CliError> {
+    let levels = args.simd.levels()?;
     let base = showcase_scene();
     let cases: Vec<(String, Scene)> =
         [("trilinear", Filter::Trilinear), ("bilinear", Filter::Bilinear), ("nearest", Filter::Nearest)]
@@ -313,7 +428,7 @@ pub fn texture(args: TextureArgs) -> Result<(), CliError> {
             args.frames
         );
     }
-    let report = run_cases("texture", &cases, args.frames, args.size, args.backends, args.json)?;
+    let report = run_cases("texture", &cases, args.frames, args.size, args.backends, &levels, args.json)?;
     if args.json {
         let text = serde_json::to_string_pretty(&report).map_err(|e| CliError::Internal(e.to_string()))?;
         println!("{text}");
@@ -358,10 +473,13 @@ pub struct NurbsArgs {
     /// Also write a bar chart (SVG) of the medians.
     #[arg(long)]
     pub chart: Option<PathBuf>,
+    #[command(flatten)]
+    pub simd: SimdArg,
 }
 
 /// `hitex bench nurbs`: the paper's Table 1 models, shaded and with isophotes.
 pub fn nurbs(args: NurbsArgs) -> Result<(), CliError> {
+    let levels = args.simd.levels()?;
     use hitex_render::nurbs::NurbsMode;
     let mut prepared = Vec::new();
     for name in ["surface", "teapot", "spray"] {
@@ -388,7 +506,7 @@ pub fn nurbs(args: NurbsArgs) -> Result<(), CliError> {
             args.size.0, args.size.1, args.frames
         );
     }
-    let report = run_case_fns("nurbs", &fns, args.frames, args.size, args.backends, args.json)?;
+    let report = run_case_fns("nurbs", &fns, args.frames, args.size, args.backends, &levels, args.json)?;
     if args.json {
         let text = serde_json::to_string_pretty(&report).map_err(|e| CliError::Internal(e.to_string()))?;
         println!("{text}");

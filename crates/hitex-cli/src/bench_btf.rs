@@ -58,6 +58,8 @@ pub struct BtfArgs {
     /// Also write a chart (SVG) of frame rates and load efficiency, like Fig. 5/6.
     #[arg(long)]
     pub chart: Option<PathBuf>,
+    #[command(flatten)]
+    pub simd: crate::bench::SimdArg,
 }
 
 /// BC1 quality of one layout.
@@ -158,6 +160,7 @@ fn case_name(l: Layout, bc1: bool) -> String {
 /// `hitex bench btf`.
 pub fn btf(args: BtfArgs) -> Result<(), CliError> {
     let quiet = args.json;
+    let levels = args.simd.levels()?;
     let material = Material::parse(&args.material)
         .ok_or_else(|| CliError::Input(format!("unknown material '{}'", args.material)))?;
     let layouts: Vec<Layout> = match &args.layouts {
@@ -251,7 +254,7 @@ pub fn btf(args: BtfArgs) -> Result<(), CliError> {
         if !quiet {
             eprintln!("{name}: prepared in {prep_ms:.0} ms");
         }
-        reports.push(run_case_fns("btf", &[(name, f)], args.frames, args.size, args.backends, quiet)?);
+        reports.push(run_case_fns("btf", &[(name, f)], args.frames, args.size, args.backends, &levels, quiet)?);
     }
     // load efficiency relative to (a) uncompressed
     let base = cache_rows.iter().find(|c| c.case == "layout-a").map(|c| c.bytes_per_texel);

@@ -34,6 +34,8 @@ pub struct TerrainArgs {
     /// Backends to run.
     #[arg(long, value_enum, default_value_t = Backends::Both)]
     pub backends: Backends,
+    #[command(flatten)]
+    pub simd: crate::bench::SimdArg,
 }
 
 /// A span case against per-pixel trilinear on the same views.
@@ -73,6 +75,7 @@ pub struct TerrainReport {
 
 /// `hitex bench terrain`.
 pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
+    let levels = a.simd.levels()?;
     if a.source < TILE || !a.source.is_power_of_two() || a.source > 16384 {
         return Err(CliError::Input(format!("--source {} must be a power of two in 256..=16384", a.source)));
     }
@@ -144,7 +147,7 @@ pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
         })
     };
     let cases: Vec<(String, CaseFn)> = FlySampler::ALL.iter().map(|&s| (s.name().to_string(), case(s))).collect();
-    let timing = run_case_fns("terrain", &cases, frames, a.size, a.backends, a.json)?;
+    let timing = run_case_fns("terrain", &cases, frames, a.size, a.backends, &levels, a.json)?;
     // quality and bank traffic of every span sampler against per-pixel
     // trilinear, on the CPU (which models the banks), over the same frames
     let mut acc: Vec<(f64, f64, BankModel)> = Vec::new();

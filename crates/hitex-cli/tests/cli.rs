@@ -150,6 +150,46 @@ fn bench_texture_json_has_the_shared_shape() {
 }
 
 #[test]
+fn bench_runs_every_simd_level_and_checks_they_agree() {
+    let o = hitex(&["bench", "nurbs", "--backends", "cpu", "--frames", "1", "--size", "48x48", "--simd", "all"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(s.contains("cpu ms by SIMD level") && s.contains("scalar"), "{s}");
+    assert!(!s.contains(" NO"), "a level rendered another image: {s}");
+    // JSON: one CPU row per case and level, each naming its level and whether its image agrees
+    let o =
+        hitex(&["bench", "nurbs", "--backends", "cpu", "--frames", "1", "--size", "48x48", "--simd", "all", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let rows = v["rows"].as_array().unwrap();
+    let levels: std::collections::BTreeSet<&str> = rows.iter().map(|r| r["simd"].as_str().unwrap()).collect();
+    assert!(levels.len() >= 2 && levels.contains("scalar"), "{levels:?}");
+    assert!(rows.iter().all(|r| r["same_image"] == true), "{rows:?}");
+    // one level, and a level that does not exist
+    let o = hitex(&[
+        "bench",
+        "texture",
+        "--backends",
+        "cpu",
+        "--frames",
+        "1",
+        "--size",
+        "32x32",
+        "--simd",
+        "scalar",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["rows"].as_array().unwrap().iter().all(|r| r["simd"] == "scalar"), "{v}");
+    // unless a level is asked for, the textured program runs at 8 lanes at most
+    let o = hitex(&["bench", "texture", "--backends", "cpu", "--frames", "1", "--size", "32x32", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["rows"].as_array().unwrap().iter().all(|r| r["simd"] != "avx512" && r["simd"] != ""), "{v}");
+    let o = hitex(&["bench", "texture", "--simd", "avx9"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("names no level"));
+}
+
+#[test]
 fn info_lists_adapters() {
     let o = hitex(&["info"]);
     assert!(o.status.success());

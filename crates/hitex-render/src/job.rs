@@ -79,6 +79,17 @@ impl Job<'_> {
         }
     }
 
+    /// The SIMD level the CPU backend runs this job's fragment program at:
+    /// the process's level ([`crate::cpu::simd::level`]), capped by the
+    /// program's widest when the level was detected, not asked for.
+    pub fn cpu_simd_level(&self) -> crate::cpu::simd::SimdLevel {
+        use crate::cpu::simd::{level, level_at_most};
+        match self {
+            Job::Scene { .. } => level_at_most(crate::cpu::textured::WIDEST),
+            _ => level(),
+        }
+    }
+
     fn check_flight_size(&self, width: u32, height: u32) -> Result<(), RenderError> {
         if let Job::Flight { uniform, .. } = self
             && (uniform.sizes[0], uniform.sizes[1]) != (width, height)

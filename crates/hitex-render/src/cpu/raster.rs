@@ -86,6 +86,12 @@ pub trait BlockShader<const K: usize>: Sync {
     /// True when the program computes its own depth (WGSL
     /// `@builtin(frag_depth)`): the depth test then runs after shading.
     const WRITES_DEPTH: bool = false;
+    /// The widest SIMD level the program is run at when the level is
+    /// detected rather than asked for (see [`simd::level_at_most`]): a
+    /// program whose lanes are mostly gathers and per-lane table reads can
+    /// run faster at 8 lanes than at 16, where moving each lane in and out of
+    /// a 512-bit register costs more.
+    const WIDEST: simd::SimdLevel = simd::SimdLevel::Avx512;
     /// Writes the colour of every live lane into `rgba` and, for programs
     /// that write depth, each lane's depth in [0, 1] into `depth` (anything
     /// else, NaN included, discards the lane).
@@ -302,7 +308,10 @@ pub fn rasterize_early<const K: usize, S: BlockShader<K>>(
             let rows = (color.len() / w) as u32;
             for &ti in &bins[b] {
                 let t = &tris[ti as usize];
-                simd::run(BandOp { t, shader, color: &mut *color, depth: &mut *depth, width, y_band, rows, occ });
+                simd::run_at(
+                    simd::level_at_most(S::WIDEST),
+                    BandOp { t, shader, color: &mut *color, depth: &mut *depth, width, y_band, rows, occ },
+                );
             }
         },
     );

@@ -20,7 +20,7 @@
 // lane loops index several arrays by the same lane, as the lane code reads
 #![allow(clippy::needless_range_loop)]
 
-use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 
 /// Lanes per block: 4 quads of 2×2 pixels.
 pub const LANES: usize = 16;
@@ -124,6 +124,8 @@ impl std::fmt::Display for SimdLevel {
 
 /// 0: not chosen yet.
 static LEVEL: AtomicU8 = AtomicU8::new(0);
+/// True when the level was asked for (`HITEX_SIMD`, [`set_level`]), not detected.
+static FORCED: AtomicBool = AtomicBool::new(false);
 
 /// The level `HITEX_SIMD` asks for: `Ok(None)` when unset or `auto`, an
 /// error naming the levels when it names none or one this processor lacks.
@@ -147,9 +149,19 @@ pub fn level() -> SimdLevel {
     if let Some(l) = SimdLevel::of_code(LEVEL.load(Ordering::Relaxed)) {
         return l;
     }
-    let l = level_from_env().ok().flatten().unwrap_or_else(SimdLevel::detect);
+    let forced = level_from_env().ok().flatten();
+    FORCED.store(forced.is_some(), Ordering::Relaxed);
+    let l = forced.unwrap_or_else(SimdLevel::detect);
     LEVEL.store(l.code(), Ordering::Relaxed);
     l
+}
+
+/// The level a program that runs fastest at no more than `widest` takes:
+/// [`level`] when it was asked for (`HITEX_SIMD`, [`set_level`]: every
+/// level stays measurable), else the detected level capped at `widest`.
+pub fn level_at_most(widest: SimdLevel) -> SimdLevel {
+    let l = level();
+    if FORCED.load(Ordering::Relaxed) || l.width() <= widest.width() { l } else { widest }
 }
 
 /// Makes the CPU backend run at `l` from now on (process-wide).
@@ -158,14 +170,21 @@ pub fn set_level(l: SimdLevel) -> Result<(), String> {
         return Err(format!("this processor lacks {l}"));
     }
     LEVEL.store(l.code(), Ordering::Relaxed);
+    FORCED.store(true, Ordering::Relaxed);
     Ok(())
 }
 
 /// Runs `op` compiled for the current [`level`].
 #[inline(always)]
 pub fn run<Op: pulp::WithSimd>(op: Op) -> Op::Output {
+    run_at(level(), op)
+}
+
+/// Runs `op` compiled for `l` (a level this processor lacks runs the baseline).
+#[inline(always)]
+pub fn run_at<Op: pulp::WithSimd>(l: SimdLevel, op: Op) -> Op::Output {
     use pulp::Simd;
-    match level() {
+    match l {
         #[cfg(target_arch = "x86_64")]
         SimdLevel::Avx512 => match pulp::x86::V4::try_new() {
             Some(s) => Simd::vectorize(s, op),

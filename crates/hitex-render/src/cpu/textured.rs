@@ -118,7 +118,15 @@ fn raw(c: Vec3) -> [u8; 4] {
     [e(c.x), e(c.y), e(c.z), 255]
 }
 
+/// The widest SIMD level the textured program runs at unless a level is
+/// asked for. Measured on this project's machine (AMD Zen 4, `hitex bench
+/// texture --simd all` and back-to-back runs): the texel and decode-table
+/// gathers and the per-lane reads of a level run faster at 8 lanes than at
+/// 16 (the whole frame 0.78-0.92x the time).
+pub const WIDEST: super::simd::SimdLevel = super::simd::SimdLevel::Avx2;
+
 impl BlockShader<VARYINGS> for TexturedProgram<'_> {
+    const WIDEST: super::simd::SimdLevel = WIDEST;
     #[inline(always)]
     fn shade_block(&self, b: &Block<VARYINGS>, rgba: &mut [[u8; 4]; LANES], _depth: &mut Lanes) {
         let (m, opts, tex, sampler) = &self.materials[b.material];
