@@ -6,7 +6,10 @@ pub mod device;
 mod nurbs;
 mod terrain;
 
-pub use btf::layout_source;
+/// The shaders' sources (a BTF layout's: [`layout_source`]).
+pub use btf::{BTF_WGSL, layout_source};
+pub use nurbs::NURBS_WGSL;
+pub use terrain::TERRAIN_WGSL;
 
 pub use device::{GpuContext, adapters_report};
 

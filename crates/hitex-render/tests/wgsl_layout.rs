@@ -1,0 +1,159 @@
+//! Every uniform block the backends share: the Rust `#[repr(C)]` struct and
+//! the WGSL struct the shader declares have the same size and the same
+//! member offsets (WGSL's uniform layout rules, as naga's front end computes
+//! them), so that a field added on one side only fails here, not as a
+//! garbled frame.
+
+use hitex_core::btf::Layout;
+use hitex_render::btf::BtfFrame;
+use hitex_render::gpu::{NURBS_WGSL, TERRAIN_WGSL, TEXTURED_WGSL, layout_source};
+use hitex_render::nurbs::NurbsFrame;
+use hitex_render::prepare::{FrameUniform, LightUniform, MaterialUniform};
+use hitex_render::terrain::FlyUniform;
+use std::mem::{offset_of, size_of};
+
+/// The size and the (member, offset) list of struct `name` in `source`.
+fn wgsl_struct(source: &str, name: &str) -> (usize, Vec<(String, usize)>) {
+    let module =
+        naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
+    let ty = module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("no struct {name} in the shader"))
+        .1;
+    match &ty.inner {
+        naga::TypeInner::Struct { members, span } => {
+            (*span as usize, members.iter().map(|m| (m.name.clone().unwrap_or_default(), m.offset as usize)).collect())
+        }
+        other => panic!("{name} is not a struct: {other:?}"),
+    }
+}
+
+/// Checks `rust` (Rust size, (WGSL member, Rust offset) in declaration order)
+/// against the WGSL struct `name` of `source`.
+fn check(source: &str, name: &str, rust_size: usize, rust: &[(&str, usize)]) {
+    let (size, members) = wgsl_struct(source, name);
+    let names: Vec<&str> = members.iter().map(|m| m.0.as_str()).collect();
+    let expect: Vec<&str> = rust.iter().map(|m| m.0).collect();
+    assert_eq!(names, expect, "{name}: the WGSL members and the Rust fields differ");
+    for ((m, wgsl), (_, r)) in members.iter().zip(rust) {
+        assert_eq!(*wgsl, *r, "{name}.{m}: WGSL offset {wgsl}, Rust offset {r}");
+    }
+    assert_eq!(size, rust_size, "{name}: WGSL size {size}, Rust size {rust_size}");
+}
+
+#[test]
+fn textured_uniforms_match_the_shader() {
+    check(
+        TEXTURED_WGSL,
+        "Light",
+        size_of::<LightUniform>(),
+        &[("vector", offset_of!(LightUniform, vector)), ("radiance", offset_of!(LightUniform, radiance))],
+    );
+    check(
+        TEXTURED_WGSL,
+        "Frame",
+        size_of::<FrameUniform>(),
+        &[
+            ("view_proj", offset_of!(FrameUniform, view_proj)),
+            ("camera", offset_of!(FrameUniform, camera)),
+            ("ambient", offset_of!(FrameUniform, ambient)),
+            ("background", offset_of!(FrameUniform, background)),
+            ("params", offset_of!(FrameUniform, params)),
+            ("lights", offset_of!(FrameUniform, lights)),
+        ],
+    );
+    check(
+        TEXTURED_WGSL,
+        "Material",
+        size_of::<MaterialUniform>(),
+        &[
+            ("base_color", offset_of!(MaterialUniform, base_color)),
+            ("uv_scale", offset_of!(MaterialUniform, uv_scale)),
+            ("specular", offset_of!(MaterialUniform, specular)),
+            ("shininess", offset_of!(MaterialUniform, shininess)),
+            ("has_texture", offset_of!(MaterialUniform, has_texture)),
+            ("filter_mode", offset_of!(MaterialUniform, filter)),
+            ("wrap", offset_of!(MaterialUniform, wrap)),
+            ("level_rule", offset_of!(MaterialUniform, level_rule)),
+            ("lod_bias", offset_of!(MaterialUniform, lod_bias)),
+            ("level_count", offset_of!(MaterialUniform, level_count)),
+            ("size", offset_of!(MaterialUniform, size)),
+            ("atlas_size", offset_of!(MaterialUniform, atlas_size)),
+            ("one_sided", offset_of!(MaterialUniform, one_sided)),
+            ("_pad", offset_of!(MaterialUniform, _pad)),
+            ("origins", offset_of!(MaterialUniform, origins)),
+        ],
+    );
+}
+
+#[test]
+fn nurbs_uniform_matches_the_shader() {
+    check(
+        NURBS_WGSL,
+        "Frame",
+        size_of::<NurbsFrame>(),
+        &[
+            ("view_proj", offset_of!(NurbsFrame, view_proj)),
+            ("camera", offset_of!(NurbsFrame, camera)),
+            ("light", offset_of!(NurbsFrame, light)),
+            ("params", offset_of!(NurbsFrame, params)),
+            ("ranges", offset_of!(NurbsFrame, ranges)),
+            ("background", offset_of!(NurbsFrame, background)),
+            ("model", offset_of!(NurbsFrame, model)),
+            ("pull", offset_of!(NurbsFrame, pull)),
+        ],
+    );
+}
+
+#[test]
+fn btf_uniform_matches_the_shader_in_every_layout() {
+    for layout in Layout::ALL {
+        check(
+            &layout_source(layout),
+            "Frame",
+            size_of::<BtfFrame>(),
+            &[
+                ("view_proj", offset_of!(BtfFrame, view_proj)),
+                ("camera", offset_of!(BtfFrame, camera)),
+                ("light", offset_of!(BtfFrame, light)),
+                ("background", offset_of!(BtfFrame, background)),
+                ("tex_size", offset_of!(BtfFrame, tex_size)),
+                ("sizes", offset_of!(BtfFrame, sizes)),
+                ("tile", offset_of!(BtfFrame, tile)),
+                ("strides", offset_of!(BtfFrame, strides)),
+                ("theta", offset_of!(BtfFrame, theta)),
+            ],
+        );
+    }
+}
+
+#[test]
+fn flight_uniform_matches_the_shader() {
+    check(
+        TERRAIN_WGSL,
+        "Fly",
+        size_of::<FlyUniform>(),
+        &[
+            ("view_proj", offset_of!(FlyUniform, view_proj)),
+            ("eye", offset_of!(FlyUniform, eye)),
+            ("fwd", offset_of!(FlyUniform, fwd)),
+            ("right", offset_of!(FlyUniform, right)),
+            ("up", offset_of!(FlyUniform, up)),
+            ("sizes", offset_of!(FlyUniform, sizes)),
+            ("params", offset_of!(FlyUniform, params)),
+        ],
+    );
+}
+
+#[test]
+fn a_mismatch_is_caught() {
+    // the check itself: a WGSL struct one member short, and one padded differently
+    let src = "struct S { a: vec4<f32>, b: vec2<f32>, c: f32 }";
+    let r = std::panic::catch_unwind(|| check(src, "S", 32, &[("a", 0), ("b", 16)]));
+    assert!(r.is_err(), "a missing member passes");
+    let r = std::panic::catch_unwind(|| check(src, "S", 32, &[("a", 0), ("b", 16), ("c", 28)]));
+    assert!(r.is_err(), "a wrong offset passes");
+    check(src, "S", 32, &[("a", 0), ("b", 16), ("c", 24)]);
+}
