@@ -234,13 +234,6 @@ fn index_taps(t_in: f32, size: u32) -> Taps {
 
 // ---- output ----
 
-fn linear_to_srgb(l: f32) -> f32 {
-    let c = clamp(l, 0.0, 1.0);
-    if c <= 0.0031308 {
-        return c * 12.92;
-    }
-    return 1.055 * pow(c, 1.0 / 2.4) - 0.055;
-}
 
 @fragment
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {

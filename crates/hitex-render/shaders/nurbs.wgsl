@@ -597,13 +597,6 @@ fn on_boundary(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> bool {
     return du < fu || dv < fv;
 }
 
-fn linear_to_srgb(l: f32) -> f32 {
-    let c = clamp(l, 0.0, 1.0);
-    if c <= 0.0031308 {
-        return c * 12.92;
-    }
-    return 1.055 * pow(c, 1.0 / 2.4) - 0.055;
-}
 
 struct FsOut {
     @location(0) color: vec4<f32>,
@@ -626,7 +619,7 @@ fn fs_main(in: VsOut) -> FsOut {
     if at == 2u {
         discard;
     }
-    let second = mode == 3u || mode == 4u || mode == 9u;
+    let second = mode == MODE_GAUSS || mode == MODE_MEAN || mode == MODE_RADIUS;
     // exact point and derivatives
     let e = eval_patch(pid, in.u, in.v, second);
     let vn = in.normal;
@@ -648,27 +641,27 @@ fn fs_main(in: VsOut) -> FsOut {
     out.depth = clip.z / clip.w;
     let light = frame.light.xyz;
     var c: vec3<f32>;
-    if mode == 1u {
+    if mode == MODE_ISOPHOTE {
         c = isophote(n, light, frame.params.y);
-    } else if mode == 2u {
+    } else if mode == MODE_ZEBRA {
         c = zebra(n, view, vec3<f32>(0.0, 0.0, 1.0), frame.params.z);
-    } else if mode == 3u || mode == 4u {
+    } else if mode == MODE_GAUSS || mode == MODE_MEAN {
         let kh = curvatures(e, n);
         var value = kh.y;
-        if mode == 3u { value = kh.x; }
+        if mode == MODE_GAUSS { value = kh.x; }
         c = diverging(value / frame.ranges.y);
-    } else if mode == 5u {
+    } else if mode == MODE_VERTEX_NORMALS {
         var m = vec3<f32>(0.0, 0.0, 1.0);
         if length(vn) > 0.0 { m = normalize(vn); }
         if dot(m, view) < 0.0 { m = -m; }
         c = isophote(m, light, frame.params.y);
-    } else if mode == 6u {
+    } else if mode == MODE_NORMAL {
         c = n * 0.5 + vec3<f32>(0.5);
-    } else if mode == 8u {
+    } else if mode == MODE_DRAFT {
         c = draft(facing, n, light, frame.pull);
-    } else if mode == 9u {
+    } else if mode == MODE_RADIUS {
         c = reach_class(e, facing, n, light, frame.ranges.w);
-    } else if mode == 7u {
+    } else if mode == MODE_HIGHLIGHT {
         let r = frame.model.w;
         c = highlight(e.s, n, light, frame.model.xyz + light * (2.0 * r), 2.0 * r / f32(max(frame.params.z, 1u)));
     } else {

@@ -261,13 +261,6 @@ fn span_sample(s: Span, me: u32) -> vec4<f32> {
     return c0 + (c1 - c0) * g;
 }
 
-fn linear_to_srgb(l: f32) -> f32 {
-    let c = clamp(l, 0.0, 1.0);
-    if c <= 0.0031308 {
-        return c * 12.92;
-    }
-    return 1.055 * pow(c, 1.0 / 2.4) - 0.055;
-}
 
 fn encode(rgb: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(linear_to_srgb(rgb.x), linear_to_srgb(rgb.y), linear_to_srgb(rgb.z), 1.0);

@@ -186,13 +186,6 @@ fn sample(uv_in: vec2<f32>, jac: vec4<f32>) -> vec4<f32> {
 
 // ---- output ----
 
-fn linear_to_srgb(l: f32) -> f32 {
-    let c = clamp(l, 0.0, 1.0);
-    if c <= 0.0031308 {
-        return c * 12.92;
-    }
-    return 1.055 * pow(c, 1.0 / 2.4) - 0.055;
-}
 
 fn encode(c: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(linear_to_srgb(c.x), linear_to_srgb(c.y), linear_to_srgb(c.z), 1.0);

@@ -74,21 +74,48 @@ impl NurbsMode {
         Self::ALL.iter().find(|(_, m)| *m == self).map_or("shaded", |(n, _)| n)
     }
 
-    /// Index used by both fragment programs.
-    pub fn index(self) -> u32 {
+    /// Index used by both fragment programs ([`mode_index`]).
+    pub const fn index(self) -> u32 {
+        use mode_index::*;
         match self {
-            NurbsMode::Shaded => 0,
-            NurbsMode::Isophote => 1,
-            NurbsMode::Zebra => 2,
-            NurbsMode::Gauss => 3,
-            NurbsMode::Mean => 4,
-            NurbsMode::VertexNormals => 5,
-            NurbsMode::Normal => 6,
-            NurbsMode::Highlight => 7,
-            NurbsMode::Draft => 8,
-            NurbsMode::Radius => 9,
+            NurbsMode::Shaded => SHADED,
+            NurbsMode::Isophote => ISOPHOTE,
+            NurbsMode::Zebra => ZEBRA,
+            NurbsMode::Gauss => GAUSS,
+            NurbsMode::Mean => MEAN,
+            NurbsMode::VertexNormals => VERTEX_NORMALS,
+            NurbsMode::Normal => NORMAL,
+            NurbsMode::Highlight => HIGHLIGHT,
+            NurbsMode::Draft => DRAFT,
+            NurbsMode::Radius => RADIUS,
         }
     }
+}
+
+/// The display modes' indices in the uniform (`params.x`), one table for
+/// both programs: `cpu/nurbs.rs` matches on these, `nurbs.wgsl` on the
+/// `MODE_*` constants generated from them ([`wgsl_mode_constants`]).
+pub mod mode_index {
+    #![allow(missing_docs)]
+    pub const SHADED: u32 = 0;
+    pub const ISOPHOTE: u32 = 1;
+    pub const ZEBRA: u32 = 2;
+    pub const GAUSS: u32 = 3;
+    pub const MEAN: u32 = 4;
+    pub const VERTEX_NORMALS: u32 = 5;
+    pub const NORMAL: u32 = 6;
+    pub const HIGHLIGHT: u32 = 7;
+    pub const DRAFT: u32 = 8;
+    pub const RADIUS: u32 = 9;
+}
+
+/// WGSL constants `MODE_<NAME>` for every display mode (the CLI name in
+/// capitals, `-` as `_`), prepended to `nurbs.wgsl`.
+pub fn wgsl_mode_constants() -> String {
+    NurbsMode::ALL
+        .iter()
+        .map(|(name, m)| format!("const MODE_{}: u32 = {}u;\n", name.to_ascii_uppercase().replace('-', "_"), m.index()))
+        .collect()
 }
 
 /// A tessellation vertex: coarse position, exact normal there, (u, v), patch.

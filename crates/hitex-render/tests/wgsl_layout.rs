@@ -6,7 +6,7 @@
 
 use hitex_core::btf::Layout;
 use hitex_render::btf::BtfFrame;
-use hitex_render::gpu::{NURBS_WGSL, TERRAIN_WGSL, TEXTURED_WGSL, layout_source};
+use hitex_render::gpu::{TERRAIN_WGSL, TEXTURED_WGSL, layout_source, nurbs_source};
 use hitex_render::nurbs::NurbsFrame;
 use hitex_render::prepare::{FrameUniform, LightUniform, MaterialUniform};
 use hitex_render::terrain::FlyUniform;
@@ -91,7 +91,7 @@ fn textured_uniforms_match_the_shader() {
 #[test]
 fn nurbs_uniform_matches_the_shader() {
     check(
-        NURBS_WGSL,
+        &nurbs_source(),
         "Frame",
         size_of::<NurbsFrame>(),
         &[
@@ -156,4 +156,51 @@ fn a_mismatch_is_caught() {
     let r = std::panic::catch_unwind(|| check(src, "S", 32, &[("a", 0), ("b", 16), ("c", 28)]));
     assert!(r.is_err(), "a wrong offset passes");
     check(src, "S", 32, &[("a", 0), ("b", 16), ("c", 24)]);
+}
+
+#[test]
+fn shared_helpers_live_in_one_file() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+    for f in ["textured.wgsl", "btf.wgsl", "nurbs.wgsl", "terrain.wgsl"] {
+        let s = std::fs::read_to_string(dir.join(f)).unwrap();
+        assert!(!s.contains("fn linear_to_srgb"), "{f} defines linear_to_srgb again; it lives in common.wgsl");
+    }
+    let common = std::fs::read_to_string(dir.join("common.wgsl")).unwrap();
+    assert!(common.contains("fn linear_to_srgb"));
+    // every composed source has it once, and parses
+    for (name, src) in [
+        ("textured", TEXTURED_WGSL.to_string()),
+        ("nurbs", nurbs_source()),
+        ("terrain", TERRAIN_WGSL.to_string()),
+        ("btf (f)", layout_source(Layout::F)),
+    ] {
+        assert_eq!(src.matches("fn linear_to_srgb").count(), 1, "{name}");
+        naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
+    }
+}
+
+#[test]
+fn nurbs_modes_are_named_alike_in_both_programs() {
+    use hitex_render::nurbs::NurbsMode;
+    let src = nurbs_source();
+    let module = naga::front::wgsl::parse_str(&src).unwrap();
+    for (name, mode) in NurbsMode::ALL {
+        let constant = format!("MODE_{}", name.to_ascii_uppercase().replace('-', "_"));
+        let c = module
+            .constants
+            .iter()
+            .find(|(_, c)| c.name.as_deref() == Some(constant.as_str()))
+            .unwrap_or_else(|| panic!("{constant} missing"))
+            .1;
+        match module.global_expressions[c.init] {
+            naga::Expression::Literal(naga::Literal::U32(v)) => assert_eq!(v, mode.index(), "{constant}"),
+            ref e => panic!("{constant} = {e:?}"),
+        }
+        // the shader compares the mode by name only
+        let raw = std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders/nurbs.wgsl"))
+            .unwrap();
+        for k in 0..=9 {
+            assert!(!raw.contains(&format!("mode == {k}u")), "nurbs.wgsl compares the mode with {k}u");
+        }
+    }
 }

@@ -12,6 +12,7 @@
 
 use super::raster::{Block, BlockShader};
 use super::simd::{self, LANES, Lanes, V3};
+use crate::nurbs::mode_index::*;
 use crate::nurbs::{NurbsFrame, NurbsVertex, PackedNurbs};
 use glam::{Mat4, Vec3, Vec4};
 use hitex_core::nurbs::{basis_ders_fixed, basis_ders_paper, find_span};
@@ -408,7 +409,7 @@ impl<'a> NurbsProgram<'a> {
         if at == Reach::Cut {
             return ([0, 0, 0, 0], f32::NAN);
         }
-        let second = mode == 3 || mode == 4 || mode == 9;
+        let second = mode == GAUSS || mode == MEAN || mode == RADIUS;
         // exact point and derivatives
         let e = eval_packed(self.packed, patch, v[3], v[4], second, f.params[3] & 1 == 1);
         let vn = Vec3::new(v[0], v[1], v[2]);
@@ -431,24 +432,24 @@ impl<'a> NurbsProgram<'a> {
             [q(c.x), q(c.y), q(c.z), 255]
         };
         let rgba = match mode {
-            1 => raw(isophote(n, light, f.params[1])),
-            2 => raw(zebra(n, view, Vec3::Z, f.params[2])),
-            3 | 4 => {
+            ISOPHOTE => raw(isophote(n, light, f.params[1])),
+            ZEBRA => raw(zebra(n, view, Vec3::Z, f.params[2])),
+            GAUSS | MEAN => {
                 let (k, h) = curvatures(&e, n);
-                let value = if mode == 3 { k } else { h };
+                let value = if mode == GAUSS { k } else { h };
                 raw(diverging(value / f.ranges[1]))
             }
-            5 => {
+            VERTEX_NORMALS => {
                 let mut m = vn.normalize_or(Vec3::Z);
                 if m.dot(view) < 0.0 {
                     m = -m;
                 }
                 raw(isophote(m, light, f.params[1]))
             }
-            6 => raw(n * 0.5 + Vec3::splat(0.5)),
-            8 => raw(draft(facing, n, light, Vec4::from_array(f.pull))),
-            9 => raw(reach_class(&e, facing, n, light, f.ranges[3])),
-            7 => {
+            NORMAL => raw(n * 0.5 + Vec3::splat(0.5)),
+            DRAFT => raw(draft(facing, n, light, Vec4::from_array(f.pull))),
+            RADIUS => raw(reach_class(&e, facing, n, light, f.ranges[3])),
+            HIGHLIGHT => {
                 let (c, r) = (Vec3::new(f.model[0], f.model[1], f.model[2]), f.model[3]);
                 raw(highlight(e.s, n, light, c + light * (2.0 * r), 2.0 * r / f.params[2].max(1) as f32))
             }
@@ -480,7 +481,7 @@ impl NurbsProgram<'_> {
         let f = self.frame;
         let t = self.packed;
         let mode = f.params[0];
-        if !matches!(mode, 0 | 1 | 6) || f.params[3] & 3 != 1 || b.live == 0 {
+        if !matches!(mode, SHADED | ISOPHOTE | NORMAL) || f.params[3] & 3 != 1 || b.live == 0 {
             return None;
         }
         // one patch for every live lane
@@ -550,7 +551,7 @@ impl NurbsProgram<'_> {
             [q(c.x), q(c.y), q(c.z), 255]
         };
         match mode {
-            0 => {
+            SHADED => {
                 // Blinn–Phong, the same steps as `lane`
                 let albedo = Vec3::new(0.72, 0.75, 0.80);
                 let amb = f.ranges[2];
@@ -564,7 +565,7 @@ impl NurbsProgram<'_> {
                     }
                 }
             }
-            1 => {
+            ISOPHOTE => {
                 for lane in 0..LANES {
                     if b.live & (1 << lane) != 0 {
                         rgba[lane] = raw(isophote(n.lane(lane), light, f.params[1]));
@@ -1108,7 +1109,7 @@ mod tests {
         )
         .unwrap();
         let mut checked = 0;
-        for mode in [0u32, 1, 6] {
+        for mode in [SHADED, ISOPHOTE, NORMAL] {
             let mut frame = prepared.frame(&cam, 64, 48);
             frame.params[0] = mode;
             frame.params[3] = 1;

@@ -11,7 +11,7 @@ use hitex_core::scene::Camera;
 use wgpu::util::DeviceExt;
 
 /// The BTF shader source, before the layout's constants are prepended.
-pub const BTF_WGSL: &str = include_str!("../../shaders/btf.wgsl");
+pub const BTF_WGSL: &str = concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/btf.wgsl"));
 
 /// The WGSL of `layout`: its constants prepended, the 2-D or 3-D branch kept.
 pub fn layout_source(layout: Layout) -> String {

@@ -8,7 +8,7 @@ mod terrain;
 
 /// The shaders' sources (a BTF layout's: [`layout_source`]).
 pub use btf::{BTF_WGSL, layout_source};
-pub use nurbs::NURBS_WGSL;
+pub use nurbs::{NURBS_WGSL, nurbs_source};
 pub use terrain::TERRAIN_WGSL;
 
 pub use device::{GpuContext, adapters_report};
@@ -120,7 +120,8 @@ pub(crate) unsafe fn trusted_module(device: &wgpu::Device, label: &str, source: 
 }
 
 /// The textured-mesh shader source.
-pub const TEXTURED_WGSL: &str = include_str!("../../shaders/textured.wgsl");
+pub const TEXTURED_WGSL: &str =
+    concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/textured.wgsl"));
 
 struct Uploaded {
     key: u64,

@@ -8,7 +8,14 @@ use hitex_core::scene::Camera;
 use wgpu::util::DeviceExt;
 
 /// The NURBS shader source.
-pub const NURBS_WGSL: &str = include_str!("../../shaders/nurbs.wgsl");
+pub const NURBS_WGSL: &str =
+    concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/nurbs.wgsl"));
+
+/// The NURBS shader as compiled: the display modes' `MODE_*` constants
+/// (generated from [`crate::nurbs::mode_index`]) before [`NURBS_WGSL`].
+pub fn nurbs_source() -> String {
+    format!("{}{NURBS_WGSL}", crate::nurbs::wgsl_mode_constants())
+}
 
 struct Uploaded {
     id: u64,
@@ -44,7 +51,7 @@ impl NurbsGpu {
         // SAFETY: nurbs.wgsl indexes knots and control points through spans
         // found inside validated knot vectors, and its local arrays with
         // r ≤ p ≤ MAX_DEGREE (validated when the surfaces were built).
-        let module = unsafe { trusted_module(device, "nurbs.wgsl", NURBS_WGSL) };
+        let module = unsafe { trusted_module(device, "nurbs.wgsl", &nurbs_source()) };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("nurbs"),
             entries: &[

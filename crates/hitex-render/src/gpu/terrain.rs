@@ -14,7 +14,8 @@ use std::sync::Arc;
 use wgpu::util::DeviceExt;
 
 /// The flight shader source.
-pub const TERRAIN_WGSL: &str = include_str!("../../shaders/terrain.wgsl");
+pub const TERRAIN_WGSL: &str =
+    concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/terrain.wgsl"));
 
 /// Levels the page table holds (the shader's `origins` array).
 const MAX_LEVELS: u32 = 32;
