@@ -818,8 +818,9 @@ impl pulp::WithSimd for FlatRow<'_, '_> {
         let enc = hitex_core::texture::srgb_encoder();
         for (b, out) in self.row.chunks_mut(4 * LANES).enumerate() {
             let c = self.prog.shade_flat_lanes((b * LANES) as u32, self.py);
-            for (i, o) in out.chunks_exact_mut(4).enumerate() {
-                o.copy_from_slice(&[enc.encode(c[0][i]), enc.encode(c[1][i]), enc.encode(c[2][i]), 255]);
+            let rgba = super::simd::encode_rgb(enc, &c);
+            for (o, p) in out.chunks_exact_mut(4).zip(&rgba) {
+                o.copy_from_slice(p);
             }
         }
     }
@@ -845,16 +846,12 @@ impl pulp::WithSimd for FlatSpanRows<'_, '_> {
             // four spans a block, on lanes
             for bx in 0..w.div_ceil(8) {
                 let c = prog.shade_spans_lanes(bx * 8, py);
+                let rgba = super::simd::encode_rgb(enc, &c);
                 for i in 0..LANES {
                     let (x, y) = (bx * 8 + 2 * (i as u32 / 4) + (i as u32 & 1), (i as u32 >> 1) & 1);
                     if x < w && (y == 0 || two) {
                         let o = ((y * w + x) * 4) as usize;
-                        pair[o..o + 4].copy_from_slice(&[
-                            enc.encode(c[0][i]),
-                            enc.encode(c[1][i]),
-                            enc.encode(c[2][i]),
-                            255,
-                        ]);
+                        pair[o..o + 4].copy_from_slice(&rgba[i]);
                     }
                 }
             }
