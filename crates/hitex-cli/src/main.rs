@@ -18,6 +18,7 @@ mod demo;
 mod nurbs_cmd;
 mod terrain_cmd;
 mod terrain_store_cmd;
+#[cfg(feature = "viewer")]
 mod view;
 
 use clap::{Parser, Subcommand, ValueEnum};
@@ -89,7 +90,14 @@ enum Command {
         which: btf_cmd::BtfCommand,
     },
     /// Open a window on a scene, NURBS model, BTF, tile store or ground image.
+    #[cfg(feature = "viewer")]
     View(view::ViewArgs),
+    /// Open a window (this hitex was built without the viewer).
+    #[cfg(not(feature = "viewer"))]
+    View {
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
+        args: Vec<String>,
+    },
     /// List GPU adapters, their features and limits.
     Info,
     /// Benchmarks: CPU and GPU renderers on the same frames.
@@ -257,7 +265,15 @@ pub fn save(frame: &Frame, path: &Path) -> Result<(), CliError> {
 }
 
 fn run(cli: Cli) -> Result<(), CliError> {
-    if let Some(cap) = cli.max_memory {
+    // the memory cap: --max-memory, else HITEX_MAX_MEMORY, else the library's default
+    let from_env = std::env::var("HITEX_MAX_MEMORY").ok().and_then(|v| match hitex_io::limits::parse_bytes(&v) {
+        Ok(b) => Some(b),
+        Err(e) => {
+            eprintln!("hitex: HITEX_MAX_MEMORY ignored: {e}");
+            None
+        }
+    });
+    if let Some(cap) = cli.max_memory.or(from_env) {
         hitex_io::limits::set_max_bytes(cap);
     }
     match cli.command {
@@ -303,7 +319,13 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Nurbs { which } => nurbs_cmd::run(which),
         Command::Terrain { which } => terrain_cmd::run(which),
         Command::Btf { which } => btf_cmd::run(which),
+        #[cfg(feature = "viewer")]
         Command::View(args) => view::run(args),
+        #[cfg(not(feature = "viewer"))]
+        Command::View { .. } => Err(CliError::Input(
+            "this hitex was built without the viewer: build it with the default features (cargo feature `viewer`)"
+                .into(),
+        )),
         Command::Info => {
             println!("hitex {}", env!("CARGO_PKG_VERSION"));
             let simd = hitex_render::cpu::simd::level();

@@ -4,6 +4,7 @@
 //!
 //! Needs Xvfb (installed by scripts/ensure-deps.sh): without it the window
 //! tests print SKIPPED, and fail instead when `HITEX_REQUIRE_VIEWER=1` (CI).
+#![cfg(feature = "viewer")]
 
 mod common;
 

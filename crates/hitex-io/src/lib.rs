@@ -5,6 +5,8 @@
 //! * scenes: TOML files whose relative paths resolve against the file's folder.
 //!
 //! Every error names the file, and the record or key where known.
+// a library prints nothing: it returns errors and warnings, or hands notices to a callback
+#![cfg_attr(not(test), deny(clippy::print_stdout, clippy::print_stderr))]
 
 pub mod btf_file;
 pub mod btf_images;

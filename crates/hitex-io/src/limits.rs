@@ -52,24 +52,12 @@ pub fn parse_bytes(s: &str) -> Result<u64, String> {
     Ok(bytes as u64)
 }
 
-/// The cap in force, in bytes.
+/// The cap in force, in bytes: [`set_max_bytes`]'s, else
+/// [`DEFAULT_MAX_BYTES`]. The library reads no environment; the `hitex`
+/// binary sets it from `--max-memory` or `HITEX_MAX_MEMORY`.
 pub fn max_bytes() -> u64 {
     match CAP.load(Ordering::Relaxed) {
-        0 => {
-            let cap = std::env::var("HITEX_MAX_MEMORY")
-                .ok()
-                .and_then(|v| match parse_bytes(&v) {
-                    Ok(b) => Some(b),
-                    Err(e) => {
-                        eprintln!("hitex: HITEX_MAX_MEMORY ignored: {e}");
-                        None
-                    }
-                })
-                .unwrap_or(DEFAULT_MAX_BYTES);
-            // another thread may have set it meanwhile; the first value stays
-            let _ = CAP.compare_exchange(0, cap, Ordering::Relaxed, Ordering::Relaxed);
-            CAP.load(Ordering::Relaxed)
-        }
+        0 => DEFAULT_MAX_BYTES,
         c => c,
     }
 }

@@ -311,7 +311,13 @@ impl Renderer for AnyRenderer {
     fn render(&mut self, job: &Job<'_>, width: u32, height: u32) -> Result<Rendered, RenderError> {
         let first = match &mut self.engine {
             Engine::Cpu(c) => c.render(job, width, height),
-            Engine::Gpu(g) => g.render(job, width, height),
+            Engine::Gpu(g) => {
+                let r = g.render(job, width, height);
+                for e in g.context().take_uncaptured() {
+                    self.notice(format!("GPU error: {e}"));
+                }
+                r
+            }
         };
         match first {
             Err(RenderError::Gpu(e)) if self.auto => {

@@ -7,6 +7,8 @@
 //!
 //! Both consume the same [`prepare::PreparedScene`]: world-space vertices,
 //! `#[repr(C)]` uniform blocks and the texture pyramids, byte for byte.
+// a library prints nothing: it returns errors and warnings, or hands notices to a callback
+#![cfg_attr(not(test), deny(clippy::print_stdout, clippy::print_stderr))]
 
 pub mod btf;
 pub mod compare;

@@ -71,6 +71,8 @@ pub struct GpuContext {
     pub info: wgpu::AdapterInfo,
     /// Set by the device-lost callback: why the device was lost.
     lost: Arc<Mutex<Option<String>>>,
+    /// Errors the device reported outside an error scope (at most 16 kept).
+    uncaptured: Arc<Mutex<Vec<String>>>,
 }
 
 /// How long one GPU wait may take before it counts as a hang, in seconds
@@ -117,7 +119,7 @@ impl GpuContext {
     /// `TEXTURE_COMPRESSION_BC` among the device's features.
     pub fn on_device(adapter: wgpu::Adapter, device: wgpu::Device, queue: wgpu::Queue) -> Self {
         let info = adapter.get_info();
-        Self { adapter, device, queue, info, lost: Arc::default() }
+        Self { adapter, device, queue, info, lost: Arc::default(), uncaptured: Arc::default() }
     }
 
     /// Opens a device on `adapter`.
@@ -138,9 +140,14 @@ impl GpuContext {
         let lost: Arc<Mutex<Option<String>>> = Arc::default();
         // errors outside an error scope are reported, never a panic; after a loss they are only its echo
         let quiet = lost.clone();
+        let uncaptured: Arc<Mutex<Vec<String>>> = Arc::default();
+        let keep = uncaptured.clone();
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
-            if quiet.lock().map(|l| l.is_none()).unwrap_or(true) {
-                eprintln!("hitex: GPU error: {e}");
+            if quiet.lock().map(|l| l.is_none()).unwrap_or(true)
+                && let Ok(mut u) = keep.lock()
+                && u.len() < 16
+            {
+                u.push(e.to_string());
             }
         }));
         let record = lost.clone();
@@ -156,7 +163,14 @@ impl GpuContext {
                 });
             }
         });
-        Ok(Self { adapter, device, queue, info, lost })
+        Ok(Self { adapter, device, queue, info, lost, uncaptured })
+    }
+
+    /// The errors the device reported outside an error scope since the last
+    /// call (hitex prints nothing itself; [`crate::AnyRenderer`] passes them
+    /// on as notices).
+    pub fn take_uncaptured(&self) -> Vec<String> {
+        self.uncaptured.lock().map(|mut u| std::mem::take(&mut *u)).unwrap_or_default()
     }
 
     /// `Err` once the device is lost (driver reset, removal, or [`GpuContext::lose_device`]).
