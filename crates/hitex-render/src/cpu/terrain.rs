@@ -25,8 +25,8 @@
 // lane loops index several arrays by the same lane, as the lane code reads
 #![allow(clippy::needless_range_loop)]
 
-use super::raster::{QuadShader, Target, rasterize};
-use super::simd::{LANES, Lanes};
+use super::raster::{Block, BlockShader, Target, rasterize};
+use super::simd::{LANES, Lanes, ddx, ddy};
 use crate::terrain::{FlyGround, FlyMesh, FlyPages, FlySampler, FlyUniform, GROUND, GenericTexture, MAP, sky};
 use crate::{Frame, RenderError, check_size};
 use glam::{Mat4, Vec3};
@@ -293,6 +293,25 @@ impl Program<'_> {
         if ok == 0 {
             return out;
         }
+        let (c, wanted) = self.spans_lanes(&gx, &gy, ok);
+        for i in 0..LANES {
+            if wanted >> i & 1 == 0 {
+                continue;
+            }
+            let o = Self::over_ground([c[0][i], c[1][i], c[2][i], c[3][i]]);
+            for ch in 0..3 {
+                out[ch][i] = o[ch];
+            }
+        }
+        out
+    }
+
+    /// The span sampler over the four spans of a block whose points are
+    /// (gx, gy) on the lanes in `ok` (quad order, span `s` on lanes 4s …
+    /// 4s + 3): linear RGBA per lane, and the lanes filled (those of spans
+    /// with at least one point).
+    #[inline(always)]
+    fn spans_lanes(&self, gx: &Lanes, gy: &Lanes, ok: u32) -> ([Lanes; 4], u32) {
         let sampler = self.u.sampler();
         let b = sampler.banks() as i32;
         let bicubic = sampler == FlySampler::Bicubic;
@@ -329,7 +348,7 @@ impl Program<'_> {
             (ks[s], gs[s]) = (k, g);
         }
         let wanted = ok & live;
-        let c0 = self.spans_level_lanes(&gx, &gy, wanted, &ks, b, bicubic);
+        let c0 = self.spans_level_lanes(gx, gy, wanted, &ks, b, bicubic);
         let mut second = 0u32;
         for s in 0..4 {
             if gs[s] > 0.0 {
@@ -337,25 +356,17 @@ impl Program<'_> {
             }
         }
         let second = second & wanted;
-        let c1 =
-            if second != 0 { self.spans_level_lanes(&gx, &gy, second, &ks.map(|k| k + 1), b, bicubic) } else { c0 };
+        let c1 = if second != 0 { self.spans_level_lanes(gx, gy, second, &ks.map(|k| k + 1), b, bicubic) } else { c0 };
+        let mut out = c0;
         for i in 0..LANES {
-            if wanted >> i & 1 == 0 {
-                continue;
-            }
-            let g = gs[i / 4];
-            let mut c = [c0[0][i], c0[1][i], c0[2][i], c0[3][i]];
             if second >> i & 1 == 1 {
+                let g = gs[i / 4];
                 for ch in 0..4 {
-                    c[ch] = c0[ch][i] + (c1[ch][i] - c0[ch][i]) * g;
+                    out[ch][i] = c0[ch][i] + (c1[ch][i] - c0[ch][i]) * g;
                 }
             }
-            let o = Self::over_ground(c);
-            for ch in 0..3 {
-                out[ch][i] = o[ch];
-            }
         }
-        out
+        (out, wanted)
     }
 
     /// [`Program::span_level`] for the four spans of a block at levels
@@ -878,8 +889,10 @@ struct MeshProgram<'a> {
     banks: Vec<Mutex<BankModel>>,
 }
 
-impl QuadShader<4> for MeshProgram<'_> {
-    fn shade(&self, _material: usize, v: &[[f32; 4]; 4], _w: [f32; 4], _live: u8) -> [[u8; 4]; 4] {
+impl MeshProgram<'_> {
+    /// One quad, lanes (0,0) (1,0) (0,1) (1,1): the reference program, and
+    /// the one that records bank traffic and shades objects.
+    fn shade_quad(&self, v: &[[f32; 4]; 4]) -> [[u8; 4]; 4] {
         let p: [[f32; 2]; 4] = std::array::from_fn(|i| [v[i][0], v[i][1]]);
         // fine differences, as dpdxFine / dpdyFine
         let dx = |row: usize| [p[2 * row + 1][0] - p[2 * row][0], p[2 * row + 1][1] - p[2 * row][1]];
@@ -909,6 +922,73 @@ impl QuadShader<4> for MeshProgram<'_> {
             let c = colour[i];
             if kind > 0.5 { encode([c[0] * l, c[1] * l, c[2] * l]) } else { encode(Program::over_ground(c)) }
         })
+    }
+
+    /// Ground of a block (16 lanes, four quads) without bank statistics: the
+    /// same operations as [`MeshProgram::shade_quad`], on lane vectors.
+    #[inline(always)]
+    fn shade_ground_lanes(&self, b: &Block<4>) -> [Lanes; 4] {
+        let prog = self.prog;
+        let (gx, gy) = (&b.v[0], &b.v[1]);
+        if prog.u.sampler() != FlySampler::Trilinear {
+            return prog.spans_lanes(gx, gy, 0xffff).0;
+        }
+        // the footprint from the quads' fine differences (dpdxFine / dpdyFine)
+        let (dxx, dxy, dyx, dyy) = (ddx(gx), ddx(gy), ddy(gx), ddy(gy));
+        let levels = prog.pages.levels;
+        let top = (levels - 1) as f32;
+        let (mut z0, mut z1, mut t) = ([0u32; LANES], [0u32; LANES], [0.0f32; LANES]);
+        for i in 0..LANES {
+            let foot = dxx[i].abs().max(dxy[i].abs()).max(dyx[i].abs()).max(dyy[i].abs());
+            let zf = (top - super::simd::log2(foot.max(1e-9))).clamp(0.0, top);
+            let f = floor(zf);
+            z0[i] = f as u32;
+            z1[i] = (z0[i] + 1).min(levels - 1);
+            t[i] = zf - f;
+        }
+        let a = prog.bilinear_lanes(&z0, 0xffff, 0xffff, gx, gy);
+        let mut second = 0u32;
+        for i in 0..LANES {
+            second |= ((z1[i] != z0[i] && t[i] > 0.0) as u32) << i;
+        }
+        let c = if second != 0 { prog.bilinear_lanes(&z1, second, 0xffff, gx, gy) } else { a };
+        let mut out = a;
+        for ch in 0..4 {
+            for i in 0..LANES {
+                let bv = if second >> i & 1 == 1 { c[ch][i] } else { a[ch][i] };
+                out[ch][i] = a[ch][i] + (bv - a[ch][i]) * t[i];
+            }
+        }
+        out
+    }
+}
+
+impl BlockShader<4> for MeshProgram<'_> {
+    #[inline(always)]
+    fn shade_block(&self, b: &Block<4>, rgba: &mut [[u8; 4]; LANES], _depth: &mut Lanes) {
+        let first = (b.live.trailing_zeros() as usize).min(LANES - 1);
+        // objects (generic texture) and frames that record bank traffic: quad by quad
+        if b.v[2][first] > 0.5 || !self.banks.is_empty() {
+            for q in 0..4 {
+                if (b.live >> (4 * q)) & 0xf == 0 {
+                    continue;
+                }
+                let v: [[f32; 4]; 4] = std::array::from_fn(|l| std::array::from_fn(|k| b.v[k][4 * q + l]));
+                let c = self.shade_quad(&v);
+                rgba[4 * q..4 * q + 4].copy_from_slice(&c);
+            }
+            return;
+        }
+        let c = self.shade_ground_lanes(b);
+        let enc = hitex_core::texture::srgb_encoder();
+        let mut lin = [[0.0f32; LANES]; 3];
+        for i in 0..LANES {
+            let o = Program::over_ground([c[0][i], c[1][i], c[2][i], c[3][i]]);
+            for ch in 0..3 {
+                lin[ch][i] = o[ch];
+            }
+        }
+        *rgba = super::simd::encode_rgb(enc, &lin);
     }
 }
 
