@@ -1,5 +1,7 @@
 //! The library examples run here, so that they keep building and working.
 
+#[path = "../examples/fly_store.rs"]
+mod fly_store;
 #[path = "../examples/render_btf.rs"]
 mod render_btf;
 #[path = "../examples/render_nurbs.rs"]
@@ -59,4 +61,18 @@ fn the_nurbs_example_keeps_the_trims_of_a_trimmed_model() {
     let img = image::open(dir.join("shaded.png")).unwrap().to_rgba8();
     let (with, without) = (cover(img.as_raw()), cover(&f.rgba));
     assert!(with + 200 < without, "trimmed covers {with} pixels, untrimmed {without}: the hole is missing");
+}
+
+#[test]
+fn the_flight_example_builds_a_store_and_flies_over_it() {
+    let dir = out_dir("fly");
+    let name = fly_store::run(&dir, 1024, 2, (96, 64)).unwrap();
+    assert!(!name.is_empty());
+    assert!(dir.join("store/tilemapresource.xml").exists() || dir.join("store").read_dir().unwrap().count() > 1);
+    for i in 0..2 {
+        let img = image::open(dir.join(format!("frame-{i}.png"))).unwrap().to_rgba8();
+        // imagery below the horizon: many colours, not the bare ground colour
+        let colours: std::collections::HashSet<[u8; 4]> = img.pixels().map(|p| p.0).collect();
+        assert!(colours.len() > 100, "frame {i}: {} colours", colours.len());
+    }
 }
