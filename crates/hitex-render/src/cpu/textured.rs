@@ -122,7 +122,7 @@ fn raw(c: Vec3) -> [u8; 4] {
 /// asked for. Measured on this project's machine (AMD Zen 4, `hitex bench
 /// texture --simd all` and back-to-back runs): the texel and decode-table
 /// gathers and the per-lane reads of a level run faster at 8 lanes than at
-/// 16 (the whole frame 0.78-0.92x the time).
+/// 16 (the frame 0.67-0.90x the time, trilinear 0.82-0.84x, 3 pairs).
 pub const WIDEST: super::simd::SimdLevel = super::simd::SimdLevel::Avx2;
 
 impl BlockShader<VARYINGS> for TexturedProgram<'_> {
