@@ -571,6 +571,9 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             let d: Vec<String> = degrees.iter().map(|((p, q), c)| format!("{p}×{q}: {c}")).collect();
             println!("degrees: {}", d.join(", "));
             println!("bounds of the control nets: min {lo:?} max {hi:?}");
+            for n in &m.notes {
+                println!("{n}");
+            }
             for w in &m.warnings {
                 println!("warning: {w}");
             }

@@ -123,8 +123,42 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
     v.push(c("--max-memory", "not a size", &["--max-memory", "lots", "btf", "info", &hb]));
     v.push(c(
         "STEP",
-        "a STEP part (not read yet)",
-        &["nurbs", "info", &w("part.stp", b"ISO-10303-21;\nHEADER;\nENDSEC;\nDATA;\nENDSEC;\nEND-ISO-10303-21;\n")],
+        "no B-rep faces (points only)",
+        &[
+            "nurbs",
+            "info",
+            &w("part.stp", b"ISO-10303-21;\nHEADER;\nENDSEC;\nDATA;\n#1=CARTESIAN_POINT('',(0.,0.,0.));\nENDSEC;\nEND-ISO-10303-21;\n"),
+        ],
+    ));
+    let plate = include_str!("../../../fuzz/seeds/step/plate-with-hole.stp");
+    v.push(c("STEP", "truncated inside a record", &["nurbs", "info", &w("cut.stp", &plate.as_bytes()[..400])]));
+    v.push(c(
+        "STEP",
+        "a record with a stray character",
+        &[
+            "nurbs",
+            "info",
+            &w("stray.stp", plate.replacen("#23=LINE('',#10,#20);", "#23=LINE('',#10,@#20);", 1).as_bytes()),
+        ],
+    ));
+    v.push(c(
+        "STEP",
+        "not a STEP file (.stp name)",
+        &["nurbs", "info", &w("mesh.stp", b"solid cube\nendsolid cube\n")],
+    ));
+    v.push(c(
+        "STEP",
+        "every face on a surface not read yet",
+        &[
+            "nurbs",
+            "render",
+            &w(
+                "ext.stp",
+                plate.replacen("#5=PLANE('',#4);", "#5=SURFACE_OF_LINEAR_EXTRUSION('',#23,#20);", 1).as_bytes(),
+            ),
+            "-o",
+            &out,
+        ],
     ));
     v.push(c("IGES", "no such file", &["nurbs", "info", &s(&d.join("gone.igs"))]));
     v.push(c("GST store", "no metadata.json", &["terrain", "fly", &s(d), "-o", &s(&d.join("frames"))]));

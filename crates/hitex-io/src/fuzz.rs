@@ -40,11 +40,13 @@ pub enum Target {
     Store,
     /// PNG and JPEG images (textures, maps, image sets).
     Image,
+    /// STEP (ISO 10303-21) parts and assemblies, read to trimmed patches.
+    Step,
 }
 
 impl Target {
     /// Every target.
-    pub const ALL: [Target; 13] = [
+    pub const ALL: [Target; 14] = [
         Target::Iges,
         Target::ObjFreeform,
         Target::NurbsJson,
@@ -58,6 +60,7 @@ impl Target {
         Target::Npz,
         Target::Store,
         Target::Image,
+        Target::Step,
     ];
 
     /// The target's name: its folder under `fuzz/` and its fuzz binary.
@@ -76,6 +79,7 @@ impl Target {
             Target::Npz => "npz",
             Target::Store => "store",
             Target::Image => "image",
+            Target::Step => "step",
         }
     }
 
@@ -129,6 +133,7 @@ pub fn run(target: Target, data: &[u8]) -> bool {
             meta_ok && tile_ok
         }
         Target::Image => crate::decode_image(data, Path::new("fuzz.png"), ColorSpace::Srgb).is_ok(),
+        Target::Step => crate::step::parse_step(data, "fuzz.stp", &crate::step::StepOptions::default()).is_ok(),
     }
 }
 
@@ -205,6 +210,7 @@ mod tests {
         }
         assert!(run(Target::Iges, include_bytes!("../data/holed-square.igs")));
         assert!(run(Target::Scene, hitex_core::scene::SHOWCASE_TOML.as_bytes()));
+        assert!(run(Target::Step, include_bytes!("../../../fuzz/seeds/step/plate-with-hole.stp")));
         let names = b"tl000 pl000 tv000 pv000.png\ntl045 pl000 tv000 pv000.png\n\
                       tl000 pl000 tv045 pv000.png\ntl045 pl000 tv045 pv000.png\n";
         assert!(run(Target::BtfNames, names));

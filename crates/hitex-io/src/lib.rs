@@ -22,11 +22,13 @@ pub mod nurbs_json;
 pub mod obj;
 pub mod obj_freeform;
 pub mod scene_file;
+pub mod step;
 
 pub use iges::{IgesModel, IgesSurface, load_iges, parse_iges};
 pub use image_io::{create_output_dir, decode_image, load_image, output_error, save_png, write_atomic};
 pub use obj::load_obj;
 pub use scene_file::{FileLoader, load_scene};
+pub use step::{StepError, StepModel, StepOptions, load_step, parse_step};
 
 use std::path::PathBuf;
 use thiserror::Error;

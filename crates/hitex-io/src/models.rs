@@ -23,6 +23,9 @@ pub struct NurbsModel {
     pub warnings: Vec<String>,
     /// Repairs made while reading.
     pub repairs: Vec<String>,
+    /// What the reader found, for a summary (STEP: schema, units, surface
+    /// types, instances, the chord tolerance of the trims).
+    pub notes: Vec<String>,
 }
 
 impl NurbsModel {
@@ -42,7 +45,7 @@ impl NurbsModel {
 }
 
 fn from_iges(name: &str, m: IgesModel) -> NurbsModel {
-    NurbsModel { name: name.to_string(), surfaces: m.surfaces, warnings: m.warnings, repairs: m.repairs }
+    NurbsModel { name: name.to_string(), surfaces: m.surfaces, warnings: m.warnings, repairs: m.repairs, notes: vec![] }
 }
 
 /// The `surface` model of Table 1: one rational bicubic patch of 6×14 control
@@ -178,7 +181,7 @@ pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
                     IgesSurface { surface: s, range, directory_entry: 0, trim: Vec::new() }
                 })
                 .collect();
-            Ok(NurbsModel { name: "spray".into(), surfaces, warnings: vec![], repairs: vec![] })
+            Ok(NurbsModel { name: "spray".into(), surfaces, warnings: vec![], repairs: vec![], notes: vec![] })
         }
         "surface" => {
             let s = single_surface();
@@ -188,6 +191,7 @@ pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
                 surfaces: vec![IgesSurface { surface: s, range, directory_entry: 0, trim: Vec::new() }],
                 warnings: vec![],
                 repairs: vec![],
+                notes: vec![],
             })
         }
         path => {
@@ -196,11 +200,54 @@ pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
             match ext.as_deref() {
                 Some("obj") => {
                     let (surfaces, warnings) = crate::obj_freeform::load_obj_freeform_warned(p)?;
-                    Ok(NurbsModel { name: path.to_string(), surfaces, warnings, repairs: vec![] })
+                    Ok(NurbsModel { name: path.to_string(), surfaces, warnings, repairs: vec![], notes: vec![] })
                 }
                 Some("json") => {
                     let surfaces = crate::nurbs_json::load_nurbs_json(p)?;
-                    Ok(NurbsModel { name: path.to_string(), surfaces, warnings: vec![], repairs: vec![] })
+                    Ok(NurbsModel {
+                        name: path.to_string(),
+                        surfaces,
+                        warnings: vec![],
+                        repairs: vec![],
+                        notes: vec![],
+                    })
+                }
+                Some("stp") | Some("step") | Some("p21") => {
+                    let m = crate::step::load_step(p, &crate::step::StepOptions::default()).map_err(|e| {
+                        IoError::Format {
+                            path: p.to_path_buf(),
+                            message: e.to_string().replacen(&format!("{path}: "), "", 1),
+                        }
+                    })?;
+                    let types: Vec<String> = m.surface_types.iter().map(|(t, n)| format!("{n} {t}")).collect();
+                    let notes = vec![
+                        format!(
+                            "STEP {}, lengths in {}",
+                            if m.schema.is_empty() { "(no schema)" } else { &m.schema },
+                            m.length_unit
+                        ),
+                        format!(
+                            "faces: {}; {} placed in {}",
+                            types.join(", "),
+                            m.surfaces.len(),
+                            if m.instances == 1 {
+                                "1 part instance".to_string()
+                            } else {
+                                format!("{} part instances", m.instances)
+                            }
+                        ),
+                        format!(
+                            "trims sampled to a chord of {:.3e} {} (1/10 000 of the model's size)",
+                            m.chord_tolerance, m.length_unit
+                        ),
+                    ];
+                    Ok(NurbsModel {
+                        name: path.to_string(),
+                        surfaces: m.surfaces,
+                        warnings: m.warnings,
+                        repairs: m.repairs,
+                        notes,
+                    })
                 }
                 Some("igs") | Some("iges") => {
                     let m = crate::iges::load_iges(p).map_err(|e| IoError::Format {
@@ -220,12 +267,9 @@ pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
                             message: format!("no such file, and not a model name ({})", MODEL_NAMES.join(", ")),
                         });
                     }
-                    let message = match ext.as_deref() {
-                        Some("stp" | "step" | "p21") => "STEP (ISO 10303-21) is not read yet: export the part as IGES \
-                            with rational B-spline surfaces (entity 128, trimmed by 144), or as free-form OBJ"
-                            .to_string(),
-                        _ => "unsupported NURBS format (expected .igs, .iges, free-form .obj or hitex's .json)".into(),
-                    };
+                    let message =
+                        "unsupported NURBS format (expected .stp, .step, .igs, .iges, free-form .obj or hitex's .json)"
+                            .to_string();
                     Err(IoError::Format { path: p.to_path_buf(), message })
                 }
             }

@@ -7,6 +7,8 @@ use proptest::prelude::*;
 const TEAPOT: &str = include_str!("../data/teapot.igs");
 const HOLED: &str = include_str!("../data/holed-square.igs");
 const SCENE: &str = hitex_core::scene::SHOWCASE_TOML;
+const STEP_PART: &str = include_str!("../data/cad/face_recognition_sample_part.stp");
+const STEP_PLATE: &str = include_str!("../../../fuzz/seeds/step/plate-with-hole.stp");
 
 fn holed() -> Vec<hitex_io::IgesSurface> {
     match hitex_io::iges::parse_iges(HOLED, "holed") {
@@ -20,6 +22,7 @@ fn all_parsers(text: &str) {
     let _ = hitex_io::iges::parse_iges(text, "fuzz.igs");
     let _ = hitex_io::obj_freeform::parse_obj_freeform(text);
     let _ = hitex_io::nurbs_json::parse_nurbs_json(text);
+    let _ = hitex_io::step::parse_step(text.as_bytes(), "fuzz.stp", &hitex_io::StepOptions::default());
     if let Ok(d) = hitex_core::scene::SceneDesc::from_toml(text) {
         let _ = d.resolve(&hitex_core::scene::NoFiles);
     }
@@ -42,10 +45,12 @@ proptest! {
     }
 
     #[test]
-    fn corrupted_real_files_never_panic(pos: usize, byte: u8, cut: usize, which in 0usize..4) {
+    fn corrupted_real_files_never_panic(pos: usize, byte: u8, cut: usize, which in 0usize..6) {
         let base = match which {
             0 => TEAPOT.to_string(),
             1 => HOLED.to_string(),
+            4 => STEP_PART.to_string(),
+            5 => STEP_PLATE.to_string(),
             2 => hitex_io::obj_freeform::to_obj_freeform(&holed()),
             _ => hitex_io::nurbs_json::to_nurbs_json(&holed()),
         };
@@ -63,7 +68,7 @@ proptest! {
         v in prop::sample::select(vec!["nan", "inf", "-1", "0", "1e308", "99999999", "-99999999", "1e-320", "x"]),
     ) {
         // replace the k-th number of a real record by an extreme value
-        for base in [HOLED, TEAPOT] {
+        for base in [HOLED, TEAPOT, STEP_PLATE, STEP_PART] {
             let mut count = 0;
             let out: Vec<String> = base
                 .split(',')

@@ -193,6 +193,14 @@ fn normal_curvature(s: &NurbsSurface, uv: [f64; 2], dir: [f64; 3], n: [f64; 3]) 
     (l * a * a + 2.0 * m * a * b + nn * b * b) / first
 }
 
+/// Whether two boundary points of one face, at `a` and `b` in its
+/// parameters, lie on opposite sides of its domain (a closed face's seam,
+/// where the face meets itself) rather than along one stretch of boundary.
+fn across_seam(f: &Face, a: [f64; 2], b: [f64; 2]) -> bool {
+    let ((u0, u1), (v0, v1)) = f.range;
+    (a[0] - b[0]).abs() > 0.5 * (u1 - u0) || (a[1] - b[1]).abs() > 0.5 * (v1 - v0)
+}
+
 /// Finds the edges of `faces` and measures each. `size` is the model's size
 /// (bounding-box diagonal), the scale of the relative G2 floor.
 pub fn check(faces: &[Face], opts: &CheckOptions, size: f64) -> Vec<Edge> {
@@ -236,10 +244,11 @@ pub fn check(faces: &[Face], opts: &CheckOptions, size: f64) -> Vec<Edge> {
                                 for dz in -1..=1 {
                                     let Some(c) = grid.get(&[k[0] + dx, k[1] + dy, k[2] + dz]) else { continue };
                                     for &(fb, lb, sb) in c {
-                                        if fb == fa {
+                                        let o = boundaries[fb][lb][sb];
+                                        // a face meets itself only across a seam: far off in its parameters
+                                        if fb == fa && !across_seam(face_a, s.uv, o.uv) {
                                             continue;
                                         }
-                                        let o = boundaries[fb][lb][sb];
                                         let d = v3::len(v3::sub(o.p, s.p));
                                         let e = near.entry(fb).or_insert((f64::INFINITY, o.uv));
                                         if d < e.0 {

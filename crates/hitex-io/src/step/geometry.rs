@@ -1,0 +1,849 @@
+//! STEP geometry as exact rational B-splines: placements, the curves that
+//! bound faces, and the surfaces faces lie on.
+//!
+//! Analytic surfaces (plane, cylinder, cone, sphere, torus) keep their own
+//! parametrisation (ISO 10303-42: angles in radians, lengths along the axis)
+//! for point inversion and trimming, and become rational B-splines over the
+//! parameter window a face needs: circles and arcs are rational quadratics of
+//! at most a quarter turn each, never polylines. The map from an angle to the
+//! B-spline's parameter is exact (see [`Arc::param`]), so trims drawn in the
+//! surface's own parameters land where they belong.
+
+use super::part21::{Param, Record};
+use glam::{DMat4, DVec2, DVec3};
+use hitex_core::nurbs::{MAX_DEGREE, NurbsSurface};
+use std::collections::HashMap;
+#[cfg(test)]
+use std::f64::consts::PI;
+use std::f64::consts::{FRAC_PI_2, TAU};
+
+/// Entity lookups with messages that name the entity.
+pub(crate) struct Model<'a> {
+    pub records: &'a HashMap<u64, Record>,
+    /// Radians per unit of plane angle in this file (1, or π/180 for degrees).
+    pub angle_unit: f64,
+}
+
+/// A message about entity `id`.
+pub(crate) type GeomResult<T> = Result<T, String>;
+
+impl<'a> Model<'a> {
+    pub fn record(&self, id: u64) -> GeomResult<&'a Record> {
+        self.records.get(&id).ok_or_else(|| format!("#{id} is referenced but not defined"))
+    }
+
+    /// Parameters of `id` as entity `name` (a simple record or that part of a
+    /// complex one).
+    pub fn params(&self, id: u64, name: &str) -> GeomResult<&'a [Param]> {
+        let r = self.record(id)?;
+        r.part(name).ok_or_else(|| format!("#{id} is {}, expected {name}", r.type_name()))
+    }
+
+    pub fn point(&self, id: u64) -> GeomResult<DVec3> {
+        let p = self.params(id, "CARTESIAN_POINT")?;
+        let c = coords(p.get(1), id, "coordinates")?;
+        Ok(DVec3::new(c[0], c.get(1).copied().unwrap_or(0.0), c.get(2).copied().unwrap_or(0.0)))
+    }
+
+    pub fn direction(&self, id: u64) -> GeomResult<DVec3> {
+        let p = self.params(id, "DIRECTION")?;
+        let c = coords(p.get(1), id, "direction ratios")?;
+        let d = DVec3::new(c[0], c.get(1).copied().unwrap_or(0.0), c.get(2).copied().unwrap_or(0.0));
+        if d.length() <= 1e-300 {
+            return Err(format!("#{id}: DIRECTION of zero length"));
+        }
+        Ok(d.normalize())
+    }
+
+    /// `VECTOR(name, orientation, magnitude)` as a vector.
+    pub fn vector(&self, id: u64) -> GeomResult<DVec3> {
+        let p = self.params(id, "VECTOR")?;
+        let d = self.direction(reference(p.get(1), id, "orientation")?)?;
+        let m = number(p.get(2), id, "magnitude")?;
+        Ok(d * m)
+    }
+
+    /// `AXIS2_PLACEMENT_3D` (or `_2D`) as a right-handed frame.
+    pub fn frame(&self, id: u64) -> GeomResult<Frame> {
+        let r = self.record(id)?;
+        if let Some(p) = r.part("AXIS2_PLACEMENT_2D") {
+            let o = self.point(reference(p.get(1), id, "location")?)?;
+            let x = match p.get(2).and_then(Param::reference) {
+                Some(d) => self.direction(d)?,
+                None => DVec3::X,
+            };
+            return Ok(Frame::new(o, DVec3::Z, x));
+        }
+        let p = self.params(id, "AXIS2_PLACEMENT_3D")?;
+        let o = self.point(reference(p.get(1), id, "location")?)?;
+        let z = match p.get(2).and_then(Param::reference) {
+            Some(d) => self.direction(d)?,
+            None => DVec3::Z,
+        };
+        let x = match p.get(3).and_then(Param::reference) {
+            Some(d) => self.direction(d)?,
+            None => z.any_orthonormal_vector(),
+        };
+        Ok(Frame::new(o, z, x))
+    }
+
+    /// A curve (3-D or in a surface's parameter plane, then z = 0).
+    pub fn curve(&self, id: u64, depth: usize) -> GeomResult<Curve> {
+        if depth > 16 {
+            return Err(format!("#{id}: curves nest too deeply"));
+        }
+        let r = self.record(id)?;
+        if r.is("B_SPLINE_CURVE") || r.is("B_SPLINE_CURVE_WITH_KNOTS") || r.is("BEZIER_CURVE") {
+            return self.spline_curve(id, r);
+        }
+        let (name, p) = (r.parts[0].0.as_str(), r.parts[0].1.as_slice());
+        match name {
+            "LINE" => {
+                let o = self.point(reference(p.get(1), id, "pnt")?)?;
+                let d = self.vector(reference(p.get(2), id, "dir")?)?;
+                if d.length() <= 0.0 {
+                    return Err(format!("#{id}: LINE with a zero direction"));
+                }
+                Ok(Curve::Line { o, d })
+            }
+            "CIRCLE" => {
+                let f = self.frame(reference(p.get(1), id, "position")?)?;
+                let r = positive(p.get(2), id, "radius")?;
+                Ok(Curve::Ellipse { f, a: r, b: r })
+            }
+            "ELLIPSE" => {
+                let f = self.frame(reference(p.get(1), id, "position")?)?;
+                let a = positive(p.get(2), id, "semi_axis_1")?;
+                let b = positive(p.get(3), id, "semi_axis_2")?;
+                Ok(Curve::Ellipse { f, a, b })
+            }
+            "POLYLINE" => {
+                let l = p.get(1).and_then(Param::list).ok_or_else(|| format!("#{id}: POLYLINE without points"))?;
+                let pts =
+                    l.iter().map(|q| self.point(reference(Some(q), id, "point")?)).collect::<GeomResult<Vec<_>>>()?;
+                if pts.len() < 2 {
+                    return Err(format!("#{id}: POLYLINE of {} point", pts.len()));
+                }
+                Ok(Curve::Polyline(pts))
+            }
+            // the edge's vertices bound it; the basis curve carries the geometry
+            "TRIMMED_CURVE" => self.curve(reference(p.get(1), id, "basis_curve")?, depth + 1),
+            "SURFACE_CURVE" | "SEAM_CURVE" | "INTERSECTION_CURVE" | "BOUNDED_CURVE" => {
+                self.curve(reference(p.get(1), id, "curve_3d")?, depth + 1)
+            }
+            "PCURVE" => {
+                // PCURVE(name, basis_surface, DEFINITIONAL_REPRESENTATION(name, (curve), context))
+                let rep = self.params(reference(p.get(2), id, "reference_to_curve")?, "DEFINITIONAL_REPRESENTATION")?;
+                let item = rep
+                    .get(1)
+                    .and_then(Param::list)
+                    .and_then(|l| l.first())
+                    .and_then(Param::reference)
+                    .ok_or_else(|| format!("#{id}: PCURVE whose representation holds no curve"))?;
+                self.curve(item, depth + 1)
+            }
+            other => Err(format!("#{id}: {other} curves are not read yet")),
+        }
+    }
+
+    fn spline_curve(&self, id: u64, r: &Record) -> GeomResult<Curve> {
+        // simple: B_SPLINE_CURVE_WITH_KNOTS(name, degree, points, form, closed, self_int, mults, knots, spec)
+        // complex: B_SPLINE_CURVE(degree, points, form, closed, self_int) + _WITH_KNOTS(mults, knots, spec)
+        let (base, knots_part): (&[Param], Option<&[Param]>) = if r.complex {
+            let b = r.part("B_SPLINE_CURVE").ok_or_else(|| format!("#{id}: complex curve without B_SPLINE_CURVE"))?;
+            (b, r.part("B_SPLINE_CURVE_WITH_KNOTS"))
+        } else {
+            let (n, p) = (&r.parts[0].0, r.parts[0].1.as_slice());
+            if p.len() < 6 {
+                return Err(format!("#{id}: {n} with {} attributes", p.len()));
+            }
+            (&p[1..6], if n == "B_SPLINE_CURVE_WITH_KNOTS" { Some(&p[6..]) } else { None })
+        };
+        let degree = count(base.first(), id, "degree")?;
+        if degree == 0 || degree > MAX_DEGREE {
+            return Err(format!("#{id}: curve degree {degree} is outside 1..={MAX_DEGREE}"));
+        }
+        let refs = base.get(1).and_then(Param::list).ok_or_else(|| format!("#{id}: no control points"))?;
+        let pts = refs
+            .iter()
+            .map(|q| self.point(reference(Some(q), id, "control point")?))
+            .collect::<GeomResult<Vec<_>>>()?;
+        let n = pts.len();
+        if n <= degree {
+            return Err(format!("#{id}: {n} control points for degree {degree}"));
+        }
+        let knots = match knots_part {
+            Some(k) => expand_knots(k.first(), k.get(1), id)?,
+            // Bézier (or a plain B_SPLINE_CURVE): clamped, uniform pieces
+            None => bezier_knots(n, degree),
+        };
+        if knots.len() != n + degree + 1 {
+            return Err(format!(
+                "#{id}: {} knots for {n} control points of degree {degree} (need {})",
+                knots.len(),
+                n + degree + 1
+            ));
+        }
+        hitex_core::nurbs::validate_knots("curve", &knots, n, degree).map_err(|e| format!("#{id}: {e}"))?;
+        let weights = match r.part("RATIONAL_B_SPLINE_CURVE") {
+            Some(w) => {
+                let l = w.first().and_then(Param::list).ok_or_else(|| format!("#{id}: no weights"))?;
+                let w: Vec<f64> = l.iter().map(|x| number(Some(x), id, "weight")).collect::<GeomResult<_>>()?;
+                if w.len() != n || w.iter().any(|x| *x <= 0.0) {
+                    return Err(format!("#{id}: {} weights for {n} control points, each must be positive", w.len()));
+                }
+                w
+            }
+            None => vec![1.0; n],
+        };
+        let pw = pts.iter().zip(&weights).map(|(p, w)| [p.x * w, p.y * w, p.z * w, *w]).collect();
+        Ok(Curve::Spline { degree, knots, pw })
+    }
+
+    /// A face's surface.
+    pub fn surface(&self, id: u64, depth: usize) -> GeomResult<Surface> {
+        if depth > 8 {
+            return Err(format!("#{id}: surfaces nest too deeply"));
+        }
+        let r = self.record(id)?;
+        if r.is("B_SPLINE_SURFACE") || r.is("B_SPLINE_SURFACE_WITH_KNOTS") || r.is("BEZIER_SURFACE") {
+            return Ok(Surface { frame: Frame::IDENTITY, kind: Kind::Spline(self.spline_surface(id, r)?) });
+        }
+        let (name, p) = (r.parts[0].0.as_str(), r.parts[0].1.as_slice());
+        let frame = || self.frame(reference(p.get(1), id, "position")?);
+        let kind = match name {
+            "PLANE" => Kind::Plane,
+            "CYLINDRICAL_SURFACE" => Kind::Cylinder { r: positive(p.get(2), id, "radius")? },
+            "CONICAL_SURFACE" => {
+                let r = number(p.get(2), id, "radius")?;
+                let a = number(p.get(3), id, "semi_angle")? * self.angle_unit;
+                if r < 0.0 || a.abs() >= FRAC_PI_2 - 1e-9 {
+                    return Err(format!("#{id}: cone radius {r} and semi-angle {a} rad out of range"));
+                }
+                Kind::Cone { r, tan: a.tan() }
+            }
+            "SPHERICAL_SURFACE" => Kind::Sphere { r: positive(p.get(2), id, "radius")? },
+            "TOROIDAL_SURFACE" | "DEGENERATE_TOROIDAL_SURFACE" => {
+                let big = number(p.get(2), id, "major_radius")?;
+                let small = positive(p.get(3), id, "minor_radius")?;
+                if !big.is_finite() {
+                    return Err(format!("#{id}: major radius is not finite"));
+                }
+                Kind::Torus { big, small }
+            }
+            other => return Err(format!("{other} surfaces are not read yet")),
+        };
+        Ok(Surface { frame: frame()?, kind })
+    }
+
+    fn spline_surface(&self, id: u64, r: &Record) -> GeomResult<NurbsSurface> {
+        let (base, knots_part): (&[Param], Option<&[Param]>) = if r.complex {
+            let b =
+                r.part("B_SPLINE_SURFACE").ok_or_else(|| format!("#{id}: complex surface without B_SPLINE_SURFACE"))?;
+            (b, r.part("B_SPLINE_SURFACE_WITH_KNOTS"))
+        } else {
+            let (n, p) = (&r.parts[0].0, r.parts[0].1.as_slice());
+            if p.len() < 8 {
+                return Err(format!("#{id}: {n} with {} attributes", p.len()));
+            }
+            (&p[1..8], if n == "B_SPLINE_SURFACE_WITH_KNOTS" { Some(&p[8..]) } else { None })
+        };
+        let du = count(base.first(), id, "u_degree")?;
+        let dv = count(base.get(1), id, "v_degree")?;
+        for (d, dir) in [(du, "u"), (dv, "v")] {
+            if d == 0 || d > MAX_DEGREE {
+                return Err(format!("#{id}: {dir} degree {d} is outside 1..={MAX_DEGREE}"));
+            }
+        }
+        let rows = base.get(2).and_then(Param::list).ok_or_else(|| format!("#{id}: no control points"))?;
+        let nu = rows.len();
+        let nv = rows.first().and_then(Param::list).map_or(0, |r| r.len());
+        if nu <= du || nv <= dv {
+            return Err(format!("#{id}: {nu}×{nv} control points for degrees {du}×{dv}"));
+        }
+        let mut grid = vec![DVec3::ZERO; nu * nv];
+        for (i, row) in rows.iter().enumerate() {
+            let row = row
+                .list()
+                .filter(|r| r.len() == nv)
+                .ok_or_else(|| format!("#{id}: control row {i} is not {nv} points"))?;
+            for (j, q) in row.iter().enumerate() {
+                grid[j * nu + i] = self.point(reference(Some(q), id, "control point")?)?;
+            }
+        }
+        let weights = match r.part("RATIONAL_B_SPLINE_SURFACE") {
+            Some(w) => {
+                let l = w.first().and_then(Param::list).ok_or_else(|| format!("#{id}: no weights"))?;
+                let mut out = vec![1.0; nu * nv];
+                if l.len() != nu {
+                    return Err(format!("#{id}: {} weight rows for {nu} control rows", l.len()));
+                }
+                for (i, row) in l.iter().enumerate() {
+                    let row = row
+                        .list()
+                        .filter(|r| r.len() == nv)
+                        .ok_or_else(|| format!("#{id}: weight row {i} is not {nv} values"))?;
+                    for (j, x) in row.iter().enumerate() {
+                        out[j * nu + i] = number(Some(x), id, "weight")?;
+                    }
+                }
+                out
+            }
+            None => vec![1.0; nu * nv],
+        };
+        let (ku, kv) = match knots_part {
+            Some(k) => (expand_knots(k.first(), k.get(2), id)?, expand_knots(k.get(1), k.get(3), id)?),
+            None => (bezier_knots(nu, du), bezier_knots(nv, dv)),
+        };
+        let pts = grid.iter().zip(&weights).map(|(p, w)| [p.x, p.y, p.z, *w]).collect();
+        NurbsSurface::new(du, dv, nu, nv, ku, kv, pts).map_err(|e| format!("#{id}: {e}"))
+    }
+}
+
+fn bezier_knots(n: usize, degree: usize) -> Vec<f64> {
+    // n = k·degree + 1 points make k Bézier pieces; otherwise one clamped span set
+    let mut k = vec![0.0; degree + 1];
+    let inner = n - degree - 1;
+    for i in 1..=inner {
+        k.push(i as f64 / (inner + 1) as f64);
+    }
+    k.extend(std::iter::repeat_n(1.0, degree + 1));
+    k
+}
+
+fn expand_knots(mults: Option<&Param>, knots: Option<&Param>, id: u64) -> GeomResult<Vec<f64>> {
+    let m = mults.and_then(Param::list).ok_or_else(|| format!("#{id}: no knot multiplicities"))?;
+    let k = knots.and_then(Param::list).ok_or_else(|| format!("#{id}: no knots"))?;
+    if m.len() != k.len() {
+        return Err(format!("#{id}: {} multiplicities for {} knots", m.len(), k.len()));
+    }
+    let mut out = Vec::new();
+    for (mi, ki) in m.iter().zip(k) {
+        let c = count(Some(mi), id, "multiplicity")?;
+        // a multiplicity can never exceed the knots the file could describe
+        if c == 0 || c > MAX_DEGREE + 1 {
+            return Err(format!("#{id}: knot multiplicity {c} is outside 1..={}", MAX_DEGREE + 1));
+        }
+        let v = number(Some(ki), id, "knot")?;
+        out.extend(std::iter::repeat_n(v, c));
+    }
+    Ok(out)
+}
+
+pub(crate) fn reference(p: Option<&Param>, id: u64, what: &str) -> GeomResult<u64> {
+    p.and_then(Param::reference).ok_or_else(|| format!("#{id}: {what} is not a reference"))
+}
+
+pub(crate) fn number(p: Option<&Param>, id: u64, what: &str) -> GeomResult<f64> {
+    match p.and_then(Param::number) {
+        Some(v) if v.is_finite() => Ok(v),
+        _ => Err(format!("#{id}: {what} is not a number")),
+    }
+}
+
+fn positive(p: Option<&Param>, id: u64, what: &str) -> GeomResult<f64> {
+    let v = number(p, id, what)?;
+    if v > 0.0 { Ok(v) } else { Err(format!("#{id}: {what} {v} is not positive")) }
+}
+
+fn count(p: Option<&Param>, id: u64, what: &str) -> GeomResult<usize> {
+    match p {
+        Some(Param::Int(i)) if *i >= 0 && *i < (1 << 24) => Ok(*i as usize),
+        _ => Err(format!("#{id}: {what} is not a small non-negative integer")),
+    }
+}
+
+fn coords(p: Option<&Param>, id: u64, what: &str) -> GeomResult<Vec<f64>> {
+    let l = p.and_then(Param::list).ok_or_else(|| format!("#{id}: no {what}"))?;
+    if l.is_empty() || l.len() > 3 {
+        return Err(format!("#{id}: {} {what}", l.len()));
+    }
+    l.iter().map(|v| number(Some(v), id, what)).collect()
+}
+
+/// A right-handed orthonormal frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Frame {
+    pub o: DVec3,
+    pub x: DVec3,
+    pub y: DVec3,
+    pub z: DVec3,
+}
+
+impl Frame {
+    pub const IDENTITY: Frame = Frame { o: DVec3::ZERO, x: DVec3::X, y: DVec3::Y, z: DVec3::Z };
+
+    /// From an axis and a reference direction (made orthogonal to the axis).
+    pub fn new(o: DVec3, z: DVec3, x_hint: DVec3) -> Frame {
+        let z = z.normalize();
+        let mut x = x_hint - z * x_hint.dot(z);
+        if x.length() < 1e-12 {
+            x = z.any_orthonormal_vector();
+        }
+        let x = x.normalize();
+        Frame { o, x, y: z.cross(x), z }
+    }
+
+    /// The matrix taking frame coordinates to the parent's.
+    pub fn matrix(&self) -> DMat4 {
+        DMat4::from_cols(self.x.extend(0.0), self.y.extend(0.0), self.z.extend(0.0), self.o.extend(1.0))
+    }
+
+    /// `q` in frame coordinates.
+    pub fn local(&self, q: DVec3) -> DVec3 {
+        let d = q - self.o;
+        DVec3::new(d.dot(self.x), d.dot(self.y), d.dot(self.z))
+    }
+}
+
+/// A curve bounding a face.
+#[derive(Debug, Clone)]
+pub(crate) enum Curve {
+    /// `o + t·d`
+    Line { o: DVec3, d: DVec3 },
+    /// `o + a·cos t·x + b·sin t·y` (a circle when a = b); t in radians.
+    Ellipse { f: Frame, a: f64, b: f64 },
+    /// Homogeneous control points `(wx, wy, wz, w)`.
+    Spline { degree: usize, knots: Vec<f64>, pw: Vec<[f64; 4]> },
+    /// Vertex i at t = i.
+    Polyline(Vec<DVec3>),
+}
+
+impl Curve {
+    /// The period, for closed curves of a periodic parameter.
+    pub fn period(&self) -> Option<f64> {
+        matches!(self, Curve::Ellipse { .. }).then_some(TAU)
+    }
+
+    /// The curve's own parameter range (periodic: one turn from 0).
+    pub fn range(&self) -> (f64, f64) {
+        match self {
+            Curve::Line { .. } => (0.0, 1.0),
+            Curve::Ellipse { .. } => (0.0, TAU),
+            Curve::Spline { degree, knots, .. } => (knots[*degree], knots[knots.len() - degree - 1]),
+            Curve::Polyline(p) => (0.0, (p.len() - 1) as f64),
+        }
+    }
+
+    pub fn point(&self, t: f64) -> DVec3 {
+        match self {
+            Curve::Line { o, d } => *o + *d * t,
+            Curve::Ellipse { f, a, b } => f.o + f.x * (a * t.cos()) + f.y * (b * t.sin()),
+            Curve::Spline { degree, knots, pw } => {
+                let n = pw.len() - 1;
+                let t = t.clamp(knots[*degree], knots[n + 1]);
+                let span = hitex_core::nurbs::find_span(n, *degree, t, knots);
+                let mut b = [0.0; MAX_DEGREE + 1];
+                hitex_core::nurbs::basis_funs(span, t, *degree, knots, &mut b);
+                let mut c = [0.0; 4];
+                for r in 0..=*degree {
+                    let q = pw[span - degree + r];
+                    for k in 0..4 {
+                        c[k] += b[r] * q[k];
+                    }
+                }
+                DVec3::new(c[0], c[1], c[2]) / c[3]
+            }
+            Curve::Polyline(p) => {
+                let t = t.clamp(0.0, (p.len() - 1) as f64);
+                let i = (t.floor() as usize).min(p.len() - 2);
+                p[i].lerp(p[i + 1], t - i as f64)
+            }
+        }
+    }
+
+    /// Pieces the curve has (a lower bound on the samples an edge needs).
+    pub fn pieces(&self, t0: f64, t1: f64) -> usize {
+        match self {
+            Curve::Line { .. } => 1,
+            // eight samples a turn before refinement
+            Curve::Ellipse { .. } => (((t1 - t0).abs() / (TAU / 8.0)).ceil() as usize).max(2),
+            Curve::Spline { degree, knots, .. } => {
+                let (lo, hi) = (t0.min(t1), t0.max(t1));
+                let spans = knots.windows(2).filter(|w| w[1] > w[0] && w[1] > lo && w[0] < hi).count();
+                (spans * (*degree).max(2)).clamp(2, 4096)
+            }
+            Curve::Polyline(p) => p.len(),
+        }
+    }
+
+    /// Whether the curve is exactly the straight chord between any two of
+    /// its points (a line, or a polyline sampled at its vertices).
+    pub fn is_straight(&self) -> bool {
+        matches!(self, Curve::Line { .. })
+    }
+
+    /// The parameter of the curve point nearest `q` (the edge's vertices lie
+    /// on it, up to the file's tolerance).
+    pub fn param_of(&self, q: DVec3) -> f64 {
+        match self {
+            Curve::Line { o, d } => (q - *o).dot(*d) / d.length_squared(),
+            Curve::Ellipse { f, a, b } => {
+                let l = f.local(q);
+                (l.y / b).atan2(l.x / a).rem_euclid(TAU)
+            }
+            Curve::Polyline(p) => {
+                let mut best = (f64::INFINITY, 0.0);
+                for i in 0..p.len() - 1 {
+                    let (a, b) = (p[i], p[i + 1]);
+                    let ab = b - a;
+                    let s = if ab.length_squared() > 0.0 {
+                        ((q - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    };
+                    let d = (a + ab * s).distance_squared(q);
+                    if d < best.0 {
+                        best = (d, i as f64 + s);
+                    }
+                }
+                best.1
+            }
+            Curve::Spline { .. } => {
+                let (t0, t1) = self.range();
+                let n = 64 * self.pieces(t0, t1).min(64);
+                let mut best = (f64::INFINITY, t0);
+                for k in 0..=n {
+                    let t = t0 + (t1 - t0) * k as f64 / n as f64;
+                    let d = self.point(t).distance_squared(q);
+                    if d < best.0 {
+                        best = (d, t);
+                    }
+                }
+                // golden-section refinement on the bracket around the best sample
+                let h = (t1 - t0) / n as f64;
+                let (mut lo, mut hi) = ((best.1 - h).max(t0), (best.1 + h).min(t1));
+                let g = 0.618_033_988_749_894_9;
+                for _ in 0..80 {
+                    let (m1, m2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+                    if self.point(m1).distance_squared(q) < self.point(m2).distance_squared(q) {
+                        hi = m2;
+                    } else {
+                        lo = m1;
+                    }
+                }
+                0.5 * (lo + hi)
+            }
+        }
+    }
+}
+
+/// The surfaces hitex reads.
+#[derive(Debug, Clone)]
+pub(crate) enum Kind {
+    /// `o + s·x + t·y`
+    Plane,
+    /// `o + r(cos s·x + sin s·y) + t·z`
+    Cylinder { r: f64 },
+    /// `o + (r + t·tan α)(cos s·x + sin s·y) + t·z`
+    Cone { r: f64, tan: f64 },
+    /// `o + r cos t(cos s·x + sin s·y) + r sin t·z`
+    Sphere { r: f64 },
+    /// `o + (R + r cos t)(cos s·x + sin s·y) + r sin t·z`
+    Torus { big: f64, small: f64 },
+    /// Its own knot parameters.
+    Spline(NurbsSurface),
+}
+
+/// A surface in its own parameters.
+#[derive(Debug, Clone)]
+pub(crate) struct Surface {
+    pub frame: Frame,
+    pub kind: Kind,
+}
+
+impl Surface {
+    /// Which parameters are angles (periodic with period 2π).
+    pub fn periodic(&self) -> [bool; 2] {
+        match self.kind {
+            Kind::Plane | Kind::Spline(_) => [false, false],
+            Kind::Cylinder { .. } | Kind::Cone { .. } | Kind::Sphere { .. } => [true, false],
+            Kind::Torus { .. } => [true, true],
+        }
+    }
+
+    /// The point at parameters `(s, t)`.
+    pub fn point(&self, st: DVec2) -> DVec3 {
+        let f = &self.frame;
+        let (s, t) = (st.x, st.y);
+        let radial = |rho: f64, z: f64| f.o + (f.x * s.cos() + f.y * s.sin()) * rho + f.z * z;
+        match &self.kind {
+            Kind::Plane => f.o + f.x * s + f.y * t,
+            Kind::Cylinder { r } => radial(*r, t),
+            Kind::Cone { r, tan } => radial(r + t * tan, t),
+            Kind::Sphere { r } => radial(r * t.cos(), r * t.sin()),
+            Kind::Torus { big, small } => radial(big + small * t.cos(), small * t.sin()),
+            Kind::Spline(n) => {
+                let p = n.point(s, t);
+                DVec3::from_array(p)
+            }
+        }
+    }
+
+    /// The parameters of the point nearest `q`; periodic ones are taken
+    /// within half a turn of `hint` when one is given.
+    pub fn project(&self, q: DVec3, hint: Option<DVec2>) -> DVec2 {
+        let l = self.frame.local(q);
+        let near = |a: f64, h: Option<f64>| match h {
+            Some(h) => a + TAU * ((h - a) / TAU).round(),
+            None => a,
+        };
+        let rho = l.x.hypot(l.y);
+        // on the axis the angle is undefined: keep the hint's
+        let angle = if rho > 1e-12 * (1.0 + l.length()) { l.y.atan2(l.x) } else { hint.map_or(0.0, |h| h.x) };
+        let s = near(angle, hint.map(|h| h.x));
+        match &self.kind {
+            Kind::Plane => DVec2::new(l.x, l.y),
+            Kind::Cylinder { .. } => DVec2::new(s, l.z),
+            Kind::Cone { r, tan } => {
+                // nearest point on the generator line through (r + t·tan, t) in the (ρ, z) half-plane
+                let t = ((rho - r) * tan + l.z) / (1.0 + tan * tan);
+                DVec2::new(s, t)
+            }
+            Kind::Sphere { .. } => DVec2::new(s, l.z.atan2(rho)),
+            Kind::Torus { big, .. } => {
+                let t = l.z.atan2(rho - big);
+                DVec2::new(s, near(t, hint.map(|h| h.y)))
+            }
+            Kind::Spline(n) => {
+                let range = n.domain();
+                let start = match hint {
+                    Some(h) => [h.x, h.y],
+                    None => coarse_start(n, q),
+                };
+                let (uv, _) = hitex_core::nurbs::continuity::invert(n, range, q.to_array(), start);
+                DVec2::new(uv[0], uv[1])
+            }
+        }
+    }
+
+    /// The natural parameter window where the surface is bounded without
+    /// trims (sphere, torus, B-spline), if it has one.
+    pub fn natural_window(&self) -> Option<[(f64, f64); 2]> {
+        match &self.kind {
+            Kind::Sphere { .. } => Some([(0.0, TAU), (-FRAC_PI_2, FRAC_PI_2)]),
+            Kind::Torus { .. } => Some([(0.0, TAU), (0.0, TAU)]),
+            Kind::Spline(n) => {
+                let d = n.domain();
+                Some([d.0, d.1])
+            }
+            _ => None,
+        }
+    }
+
+    /// The exact rational B-spline over the window `[s0, s1] × [t0, t1]` of
+    /// the surface's own parameters, and the map from those parameters to
+    /// the B-spline's.
+    pub fn to_nurbs(&self, win: [(f64, f64); 2]) -> GeomResult<(NurbsSurface, ParamMap)> {
+        let [(s0, s1), (t0, t1)] = win;
+        let f = &self.frame;
+        let plane = |s: f64, t: f64| f.o + f.x * s + f.y * t;
+        match &self.kind {
+            Kind::Plane => {
+                let pts = [plane(s0, t0), plane(s1, t0), plane(s0, t1), plane(s1, t1)]
+                    .iter()
+                    .map(|p| [p.x, p.y, p.z, 1.0])
+                    .collect();
+                let s = NurbsSurface::new(1, 1, 2, 2, vec![s0, s0, s1, s1], vec![t0, t0, t1, t1], pts)
+                    .map_err(|e| e.to_string())?;
+                Ok((s, ParamMap { s: None, t: None }))
+            }
+            Kind::Cylinder { r } => {
+                let prof = [(*r, t0, 1.0), (*r, t1, 1.0)];
+                let arc = Arc::new(s0, s1);
+                Ok((revolve(f, &arc, &prof, 1, &[t0, t0, t1, t1])?, ParamMap { s: Some(arc), t: None }))
+            }
+            Kind::Cone { r, tan } => {
+                let prof = [(r + t0 * tan, t0, 1.0), (r + t1 * tan, t1, 1.0)];
+                let arc = Arc::new(s0, s1);
+                Ok((revolve(f, &arc, &prof, 1, &[t0, t0, t1, t1])?, ParamMap { s: Some(arc), t: None }))
+            }
+            Kind::Sphere { r } => {
+                let (arc, varc) = (Arc::new(s0, s1), Arc::new(t0, t1));
+                let (knots, ctrl) = varc.control();
+                let prof: Vec<(f64, f64, f64)> = ctrl.iter().map(|c| (r * c.0, r * c.1, c.2)).collect();
+                Ok((revolve(f, &arc, &prof, 2, &knots)?, ParamMap { s: Some(arc), t: Some(varc) }))
+            }
+            Kind::Torus { big, small } => {
+                let (arc, varc) = (Arc::new(s0, s1), Arc::new(t0, t1));
+                let (knots, ctrl) = varc.control();
+                let prof: Vec<(f64, f64, f64)> = ctrl.iter().map(|c| (big + small * c.0, small * c.1, c.2)).collect();
+                Ok((revolve(f, &arc, &prof, 2, &knots)?, ParamMap { s: Some(arc), t: Some(varc) }))
+            }
+            Kind::Spline(n) => Ok((n.clone(), ParamMap { s: None, t: None })),
+        }
+    }
+}
+
+fn coarse_start(n: &NurbsSurface, q: DVec3) -> [f64; 2] {
+    let ((u0, u1), (v0, v1)) = n.domain();
+    let mut best = (f64::INFINITY, [u0, v0]);
+    let k = 24;
+    for i in 0..=k {
+        for j in 0..=k {
+            let (u, v) = (u0 + (u1 - u0) * i as f64 / k as f64, v0 + (v1 - v0) * j as f64 / k as f64);
+            let d = DVec3::from_array(n.point(u, v)).distance_squared(q);
+            if d < best.0 {
+                best = (d, [u, v]);
+            }
+        }
+    }
+    best.1
+}
+
+/// Maps a surface's own parameters to its B-spline's: angles through their
+/// arcs, other parameters unchanged.
+#[derive(Debug, Clone)]
+pub(crate) struct ParamMap {
+    pub s: Option<Arc>,
+    pub t: Option<Arc>,
+}
+
+impl ParamMap {
+    pub fn apply(&self, st: DVec2) -> [f64; 2] {
+        let f = |a: &Option<Arc>, x: f64| a.as_ref().map_or(x, |a| a.param(x));
+        [f(&self.s, st.x), f(&self.t, st.y)]
+    }
+}
+
+/// A circular arc from angle `a0` to `a1` (radians, a1 > a0, at most a turn)
+/// as rational quadratic pieces of at most a quarter turn, with the knots at
+/// the pieces' end angles.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Arc {
+    pub a0: f64,
+    pub a1: f64,
+    pub pieces: usize,
+}
+
+impl Arc {
+    pub fn new(a0: f64, a1: f64) -> Arc {
+        let pieces = (((a1 - a0) / FRAC_PI_2) - 1e-9).ceil().max(1.0) as usize;
+        Arc { a0, a1, pieces }
+    }
+
+    fn step(&self) -> f64 {
+        (self.a1 - self.a0) / self.pieces as f64
+    }
+
+    /// Knots and the unit circle's control points `(x, y, w)` (Cartesian).
+    pub fn control(&self) -> (Vec<f64>, Vec<(f64, f64, f64)>) {
+        let d = self.step();
+        let w = (0.5 * d).cos();
+        let mut knots = vec![self.a0; 3];
+        let mut pts = vec![(self.a0.cos(), self.a0.sin(), 1.0)];
+        for k in 0..self.pieces {
+            let (a, b) =
+                (self.a0 + d * k as f64, if k + 1 == self.pieces { self.a1 } else { self.a0 + d * (k + 1) as f64 });
+            let m = 0.5 * (a + b);
+            pts.push((m.cos() / w, m.sin() / w, w));
+            pts.push((b.cos(), b.sin(), 1.0));
+            if k + 1 < self.pieces {
+                knots.extend([b, b]);
+            }
+        }
+        knots.extend([self.a1; 3]);
+        (knots, pts)
+    }
+
+    /// The B-spline parameter of the arc point at angle `phi`. In a symmetric
+    /// rational quadratic piece of sweep Δ, tan(ψ/2) of the angle ψ from the
+    /// piece's middle is linear in the piece's parameter τ ∈ [0, 1]:
+    /// tan(ψ/2) = (2τ − 1)·tan(Δ/4).
+    pub fn param(&self, phi: f64) -> f64 {
+        let d = self.step();
+        let k = (((phi - self.a0) / d).floor().max(0.0) as usize).min(self.pieces - 1);
+        let a = self.a0 + d * k as f64;
+        let psi = (phi - (a + 0.5 * d)).clamp(-0.5 * d, 0.5 * d);
+        let tau = 0.5 + (0.5 * psi).tan() / (2.0 * (0.25 * d).tan());
+        a + d * tau.clamp(0.0, 1.0)
+    }
+}
+
+/// Revolves a profile given in the frame's (ρ along x, z along the axis)
+/// half-plane, control points `(ρ, z, w)` of degree `degree` over `knots`,
+/// through `arc` about the frame's z axis.
+fn revolve(
+    f: &Frame,
+    arc: &Arc,
+    profile: &[(f64, f64, f64)],
+    degree: usize,
+    knots: &[f64],
+) -> GeomResult<NurbsSurface> {
+    let (uknots, circle) = arc.control();
+    let (nu, nv) = (circle.len(), profile.len());
+    let mut pts = Vec::with_capacity(nu * nv);
+    for (rho, z, wv) in profile {
+        for (cx, cy, wu) in &circle {
+            let p = f.o + (f.x * *cx + f.y * *cy) * *rho + f.z * *z;
+            pts.push([p.x, p.y, p.z, wu * wv]);
+        }
+    }
+    NurbsSurface::new(2, degree, nu, nv, uknots, knots.to_vec(), pts).map_err(|e| e.to_string())
+}
+
+/// Applies an affine placement to a surface's control points (exact: rational
+/// B-splines are invariant under affine maps of their Cartesian points).
+pub(crate) fn transform_surface(s: &mut NurbsSurface, m: &DMat4) {
+    for p in &mut s.points {
+        let q = m.transform_point3(DVec3::new(p[0], p[1], p[2]));
+        p[0] = q.x;
+        p[1] = q.y;
+        p[2] = q.z;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn arc_parameters_land_on_their_angles() {
+        for (a0, a1) in [(0.0, 0.3), (-1.0, 2.0), (0.5, 0.5 + TAU), (2.0, 2.0 + PI)] {
+            let arc = Arc::new(a0, a1);
+            let (knots, ctrl) = arc.control();
+            let pw: Vec<[f64; 4]> = ctrl.iter().map(|c| [c.0 * c.2, c.1 * c.2, 0.0, c.2]).collect();
+            let curve = Curve::Spline { degree: 2, knots, pw };
+            for k in 0..=40 {
+                let phi = a0 + (a1 - a0) * k as f64 / 40.0;
+                let p = curve.point(arc.param(phi));
+                assert!((p.x - phi.cos()).abs() < 1e-12 && (p.y - phi.sin()).abs() < 1e-12, "{a0}..{a1} at {phi}: {p}");
+            }
+        }
+    }
+
+    #[test]
+    fn analytic_surfaces_convert_exactly() {
+        let f = Frame::new(DVec3::new(1.0, -2.0, 0.5), DVec3::new(0.3, 0.2, 1.0), DVec3::X);
+        let kinds = [
+            Kind::Plane,
+            Kind::Cylinder { r: 2.0 },
+            Kind::Cone { r: 1.0, tan: 0.4 },
+            Kind::Sphere { r: 3.0 },
+            Kind::Torus { big: 4.0, small: 1.0 },
+        ];
+        for kind in kinds {
+            let s = Surface { frame: f, kind };
+            let win = match s.kind {
+                Kind::Sphere { .. } => [(0.2, 5.0), (-1.2, 0.9)],
+                Kind::Torus { .. } => [(-1.0, 2.5), (0.0, TAU)],
+                _ => [(-0.7, 2.9), (-1.0, 3.0)],
+            };
+            let (n, map) = s.to_nurbs(win).unwrap();
+            for i in 0..=12 {
+                for j in 0..=12 {
+                    let st = DVec2::new(
+                        win[0].0 + (win[0].1 - win[0].0) * i as f64 / 12.0,
+                        win[1].0 + (win[1].1 - win[1].0) * j as f64 / 12.0,
+                    );
+                    let uv = map.apply(st);
+                    let (a, b) = (s.point(st), DVec3::from_array(n.point(uv[0], uv[1])));
+                    assert!(a.distance(b) < 1e-10, "{:?} at {st}: {a} vs {b}", s.kind);
+                    // and the point inverts to its parameters
+                    let back = s.project(a, Some(st + DVec2::splat(0.01)));
+                    assert!(s.point(back).distance(a) < 1e-9, "{:?}: {back} for {st}", s.kind);
+                }
+            }
+        }
+    }
+}
