@@ -544,3 +544,32 @@ fn nurbs_check_measures_edges_and_gates_on_tolerances() {
         assert!(err.contains(&format!("{flag} ")) && err.contains("finite and positive"), "{err}");
     }
 }
+
+#[test]
+fn step_assemblies_read_render_and_check() {
+    let cad = Path::new(env!("CARGO_MANIFEST_DIR")).join("../hitex-io/data/cad");
+    let asm = cad.join("as1-oc-214.stp");
+    let asm = asm.to_str().unwrap();
+    let o = hitex(&["nurbs", "info", asm]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.contains("160 patches, 160 trimmed"), "{out}");
+    assert!(out.contains("STEP AUTOMOTIVE_DESIGN") && out.contains("lengths in mm"), "{out}");
+    assert!(out.contains("25 PLANE, 28 RATIONAL_B_SPLINE_SURFACE; 160 placed in 18 part instances"), "{out}");
+    assert!(out.contains("trims sampled to a chord of"), "{out}");
+    // rendered: the model covers a fair part of the frame, on the background elsewhere
+    let d = tmp("step");
+    let png = d.join("as1.png");
+    let o = hitex(&["nurbs", "render", asm, "-o", png.to_str().unwrap(), "--backend", "cpu", "--size", "320x200"]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let img = image::open(&png).unwrap().to_rgba8();
+    let bg = *img.get_pixel(0, 0);
+    let model = img.pixels().filter(|p| **p != bg).count();
+    assert!(model > 320 * 200 / 4, "{model} model pixels");
+    // every part is closed: the check finds no naked edge and passes its default gap
+    let part = cad.join("face_recognition_sample_part.stp");
+    let o = hitex(&["nurbs", "check", part.to_str().unwrap(), "--json"]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!((v["faces"].as_u64(), v["naked_edges"].as_u64()), (Some(23), Some(0)), "{v}");
+}
