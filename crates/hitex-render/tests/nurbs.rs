@@ -206,6 +206,26 @@ fn trimmed_hole_is_cut_on_both_backends() {
 }
 
 #[test]
+fn step_parts_render_alike_on_both_backends() {
+    // trims from B-rep loops (winding loops closed at a seam, pcurves, projected circles),
+    // analytic faces as rational quadratics, assembly placements
+    for (name, size) in [("face_recognition_sample_part.stp", (160, 120)), ("as1-oc-214.stp", (200, 130))] {
+        let path = format!("{}/../hitex-io/data/cad/{name}", env!("CARGO_MANIFEST_DIR"));
+        let m = hitex_io::models::load_model(&path).unwrap();
+        let p = PreparedNurbs::trimmed(m.nurbs(), &m.ranges(), &m.trims(), 6);
+        let cpu = CpuRenderer::new().render_nurbs(&p, &p.camera, size.0, size.1).unwrap();
+        let e = hitex_core::texture::linear_to_srgb_u8;
+        let bg = [e(p.background.x), e(p.background.y), e(p.background.z)];
+        let drawn = cpu.rgba.chunks_exact(4).filter(|px| px[..3] != bg).count();
+        assert!(drawn > (size.0 * size.1 / 8) as usize, "{name}: {drawn} model pixels");
+        if let Some(mut g) = gpu_or_skip("step_parts_render_alike_on_both_backends") {
+            let f = g.render_nurbs(&p, &p.camera, size.0, size.1).unwrap();
+            assert_images(&format!("step-{name}-gpu"), &f, &cpu, GPU_VS_CPU_ALIASED);
+        }
+    }
+}
+
+#[test]
 fn second_prepared_degree_and_elevation_to_the_nearest_prepared_degree() {
     let cpu = CpuRenderer::new();
     let mut gpu = gpu_or_skip("second_prepared_degree_and_elevation_to_the_nearest_prepared_degree");
