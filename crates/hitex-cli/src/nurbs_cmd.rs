@@ -16,8 +16,12 @@ pub enum NurbsCommand {
     Render(RenderArgs),
     /// Patches, degrees, counts, bounds, and what the reader repaired.
     Info {
-        /// Model name or IGES file.
+        /// Model name or file (.stp/.step, .igs/.iges, .obj, .json).
         model: String,
+        /// STEP: largest distance between a trim as drawn and the true edge,
+        /// model units (default: 1/10 000 of the model's size).
+        #[arg(long, allow_negative_numbers = true)]
+        chord: Option<f64>,
     },
     /// Write a model as IGES (entity 128), OBJ free-form, or hitex's native JSON.
     Export {
@@ -26,6 +30,10 @@ pub enum NurbsCommand {
         /// Output file: `.igs`/`.iges`, `.obj` or `.json`.
         #[arg(short, long)]
         output: PathBuf,
+        /// STEP: largest distance between a trim as drawn and the true edge,
+        /// model units (default: 1/10 000 of the model's size).
+        #[arg(long, allow_negative_numbers = true)]
+        chord: Option<f64>,
     },
     /// Continuity across the edges that faces share, from the exact surfaces:
     /// largest gap (G0), normal angle (G1) and relative curvature jump (G2)
@@ -94,6 +102,10 @@ impl From<ModeArg> for NurbsMode {
 pub struct RenderArgs {
     /// Model name (`surface`, `teapot`) or IGES file.
     pub model: String,
+    /// STEP: largest distance between a trim as drawn and the true edge,
+    /// model units (default: 1/10 000 of the model's size).
+    #[arg(long, allow_negative_numbers = true)]
+    pub chord: Option<f64>,
     /// Display mode.
     #[arg(long, value_enum, default_value_t = ModeArg::Shaded)]
     pub mode: ModeArg,
@@ -153,6 +165,10 @@ pub struct RenderArgs {
 pub struct CheckArgs {
     /// Model name or file.
     pub model: String,
+    /// STEP: largest distance between a trim as drawn and the true edge,
+    /// model units (default: 1/10 000 of the model's size).
+    #[arg(long, allow_negative_numbers = true)]
+    pub chord: Option<f64>,
     /// Largest gap allowed, model units (default: 1e-4 of the model's bounding diagonal).
     #[arg(long, allow_negative_numbers = true)]
     pub g0: Option<f64>,
@@ -192,7 +208,7 @@ fn check(a: CheckArgs) -> Result<(), CliError> {
             return Err(CliError::Input(format!("{name} {x} must be finite and positive")));
         }
     }
-    let m = load_model(&a.model)?;
+    let m = load(&a.model, a.chord)?;
     for w in &m.warnings {
         eprintln!("hitex: warning: {}: {w}", m.name);
     }
@@ -426,6 +442,16 @@ fn parse_uv(s: &str) -> Result<(f64, f64), String> {
     Ok((u, v))
 }
 
+/// Loads a model, with `--chord` checked and passed to the STEP reader.
+fn load(model: &str, chord: Option<f64>) -> Result<NurbsModel, CliError> {
+    if let Some(c) = chord
+        && !(c.is_finite() && c > 0.0)
+    {
+        return Err(CliError::Input(format!("--chord {c} must be finite and positive (model units)")));
+    }
+    Ok(hitex_io::models::load_model_with(model, &hitex_io::models::LoadOptions { chord_tolerance: chord })?)
+}
+
 /// Prepares a model for rendering.
 pub fn prepare(model: &NurbsModel, density: u32) -> PreparedNurbs {
     PreparedNurbs::trimmed(model.nurbs(), &model.ranges(), &model.trims(), density)
@@ -469,7 +495,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             {
                 return Err(CliError::Input(format!("--range {r} must be finite and positive")));
             }
-            let model = load_model(&a.model)?;
+            let model = load(&a.model, a.chord)?;
             for w in &model.warnings {
                 eprintln!("hitex: warning: {}: {w}", model.name);
             }
@@ -552,8 +578,8 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             }
             Ok(())
         }
-        NurbsCommand::Info { model } => {
-            let m = load_model(&model)?;
+        NurbsCommand::Info { model, chord } => {
+            let m = load(&model, chord)?;
             // the summary first, then one line per patch
             let mut degrees = std::collections::BTreeMap::new();
             let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
@@ -606,8 +632,8 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             }
             Ok(())
         }
-        NurbsCommand::Export { model, output } => {
-            let m = load_model(&model)?;
+        NurbsCommand::Export { model, output, chord } => {
+            let m = load(&model, chord)?;
             for w in &m.warnings {
                 eprintln!("hitex: warning: {}: {w}", m.name);
             }

@@ -572,4 +572,26 @@ fn step_assemblies_read_render_and_check() {
     assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
     assert_eq!((v["faces"].as_u64(), v["naked_edges"].as_u64()), (Some(23), Some(0)), "{v}");
+    // --chord: a finer chord samples the trims more densely; a bad one is refused by name
+    let points = |chord: &str| -> usize {
+        let o = hitex(&["nurbs", "info", part.to_str().unwrap(), "--chord", chord]);
+        let out = String::from_utf8_lossy(&o.stdout).to_string();
+        assert!(out.contains(&format!("trims sampled to a chord of {chord}")) || out.contains("(--chord)"), "{out}");
+        out.lines()
+            .filter_map(|l| l.split("loops of ").nth(1).or_else(|| l.split("loop of ").nth(1)))
+            .flat_map(|t| {
+                t.split(" points")
+                    .next()
+                    .unwrap_or("")
+                    .split(" / ")
+                    .map(|n| n.trim().parse::<usize>().unwrap_or(0))
+                    .collect::<Vec<_>>()
+            })
+            .sum()
+    };
+    let (fine, coarse) = (points("0.001"), points("1"));
+    assert!(fine > 2 * coarse, "{fine} vs {coarse} trim points");
+    let o = hitex(&["nurbs", "render", part.to_str().unwrap(), "--chord", "-1", "-o", png.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--chord -1 must be finite and positive"));
 }

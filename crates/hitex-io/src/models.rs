@@ -164,9 +164,22 @@ pub fn spray() -> Vec<NurbsSurface> {
     out
 }
 
-/// Loads a model by name (`surface`, `teapot`, `spray`), from an IGES file, a
-/// Wavefront OBJ free-form file, or hitex's native JSON.
+/// How files become models.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LoadOptions {
+    /// STEP: the chord tolerance of the trims, in model units (see
+    /// [`crate::step::StepOptions`]); `None`: 1/10 000 of the model's size.
+    pub chord_tolerance: Option<f64>,
+}
+
+/// Loads a model by name (`surface`, `teapot`, `spray`), from a STEP or IGES
+/// file, a Wavefront OBJ free-form file, or hitex's native JSON.
 pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
+    load_model_with(spec, &LoadOptions::default())
+}
+
+/// [`load_model`] with options.
+pub fn load_model_with(spec: &str, opts: &LoadOptions) -> Result<NurbsModel, IoError> {
     match spec {
         "teapot" => {
             let m = parse_iges(TEAPOT_IGES, "teapot (embedded teapot.igs)")
@@ -213,12 +226,12 @@ pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
                     })
                 }
                 Some("stp") | Some("step") | Some("p21") => {
-                    let m = crate::step::load_step(p, &crate::step::StepOptions::default()).map_err(|e| {
-                        IoError::Format {
-                            path: p.to_path_buf(),
-                            message: e.to_string().replacen(&format!("{path}: "), "", 1),
-                        }
-                    })?;
+                    let m =
+                        crate::step::load_step(p, &crate::step::StepOptions { chord_tolerance: opts.chord_tolerance })
+                            .map_err(|e| IoError::Format {
+                                path: p.to_path_buf(),
+                                message: e.to_string().replacen(&format!("{path}: "), "", 1),
+                            })?;
                     let types: Vec<String> = m.surface_types.iter().map(|(t, n)| format!("{n} {t}")).collect();
                     let notes = vec![
                         format!(
@@ -237,8 +250,14 @@ pub fn load_model(spec: &str) -> Result<NurbsModel, IoError> {
                             }
                         ),
                         format!(
-                            "trims sampled to a chord of {:.3e} {} (1/10 000 of the model's size)",
-                            m.chord_tolerance, m.length_unit
+                            "trims sampled to a chord of {:.3e} {} ({})",
+                            m.chord_tolerance,
+                            m.length_unit,
+                            if opts.chord_tolerance.is_some() {
+                                "--chord"
+                            } else {
+                                "1/10 000 of the model's size; --chord to set"
+                            }
                         ),
                     ];
                     Ok(NurbsModel {
