@@ -22,6 +22,10 @@ pub enum NurbsCommand {
         /// model units (default: 1/10 000 of the model's size).
         #[arg(long, allow_negative_numbers = true)]
         chord: Option<f64>,
+        /// Print a JSON summary: faces, census by surface kind, bounding box
+        /// and area of what the trims keep, units, skipped faces.
+        #[arg(long)]
+        json: bool,
     },
     /// Write a model as IGES (entity 128), OBJ free-form, or hitex's native JSON.
     Export {
@@ -39,6 +43,9 @@ pub enum NurbsCommand {
     /// largest gap (G0), normal angle (G1) and relative curvature jump (G2)
     /// per edge, and naked edges. Exits 1 when a tolerance is exceeded.
     Check(CheckArgs),
+    /// Distance from each point of a set (a scan, a probe) to the nearest
+    /// trimmed face: point inversion, then the trim test; max, mean and RMS.
+    Deviation(DeviationArgs),
     /// Point, partials, normal and curvatures at a parameter.
     Eval {
         /// Model name or IGES file.
@@ -158,6 +165,69 @@ pub struct RenderArgs {
     /// The model's up axis: auto (a flat model's thinnest extent, else z), x, y, z, -x, -y or -z.
     #[arg(long, default_value = "auto", value_parser = UpAxis::parse, allow_hyphen_values = true)]
     pub up: UpAxis,
+}
+
+/// Arguments of `hitex nurbs deviation`.
+#[derive(Args)]
+pub struct DeviationArgs {
+    /// Model name or file.
+    pub model: String,
+    /// The points: `{"points": [[x, y, z], …]}` (.json) or XYZ text (x y z a line).
+    #[arg(long)]
+    pub points: PathBuf,
+    /// Print JSON: every distance, and max, mean, RMS with where the largest is.
+    #[arg(long)]
+    pub json: bool,
+    /// STEP: the trims' chord tolerance, model units.
+    #[arg(long, allow_negative_numbers = true)]
+    pub chord: Option<f64>,
+}
+
+fn deviation(a: DeviationArgs) -> Result<(), CliError> {
+    use hitex_core::nurbs::measure::{DistanceFace, nearest_face};
+    use rayon::prelude::*;
+    let m = load(&a.model, a.chord)?;
+    let points = hitex_io::points::load_points(&a.points)?;
+    let faces: Vec<DistanceFace> = m.surfaces.iter().map(|s| DistanceFace::new(&s.surface, s.range, &s.trim)).collect();
+    let t = Instant::now();
+    let found: Vec<(f64, usize)> =
+        points.par_iter().map(|p| nearest_face(&faces, *p).map_or((f64::INFINITY, 0), |(d, i, _)| (d, i))).collect();
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    let n = found.len() as f64;
+    let mean = found.iter().map(|f| f.0).sum::<f64>() / n;
+    let rms = (found.iter().map(|f| f.0 * f.0).sum::<f64>() / n).sqrt();
+    let (worst, &(max, face)) = found
+        .iter()
+        .enumerate()
+        .max_by(|x, y| x.1.0.total_cmp(&y.1.0))
+        .ok_or_else(|| CliError::Input("no points".into()))?;
+    let units = m.units.clone().unwrap_or_default();
+    if a.json {
+        let v = serde_json::json!({
+            "model": m.name, "points": found.len(), "units": units,
+            "max": max, "mean": mean, "rms": rms,
+            "worst": {"index": worst, "point": points[worst], "face": face, "face_de": m.surfaces.get(face).map(|s| s.directory_entry)},
+            "distances": found.iter().map(|f| f.0).collect::<Vec<_>>(),
+            "faces": found.iter().map(|f| f.1).collect::<Vec<_>>(),
+        });
+        println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
+    } else {
+        let u = if units.is_empty() { String::new() } else { format!(" {units}") };
+        println!(
+            "{}: {} to {} faces ({ms:.0} ms)",
+            m.name,
+            crate::count(found.len(), "point", "points"),
+            m.surfaces.len()
+        );
+        println!(
+            "max {}{u} (point {worst} at {:?}, face {face}), mean {}{u}, RMS {}{u}",
+            fmt(max),
+            points[worst],
+            fmt(mean),
+            fmt(rms)
+        );
+    }
+    Ok(())
 }
 
 /// Arguments of `hitex nurbs check`.
@@ -442,6 +512,50 @@ fn parse_uv(s: &str) -> Result<(f64, f64), String> {
     Ok((u, v))
 }
 
+/// The census keys of `nurbs info --json`, in order.
+const CENSUS_KEYS: [&str; 10] =
+    ["plane", "cylinder", "cone", "sphere", "torus", "bspline", "revolution", "extrusion", "offset", "other"];
+
+/// `nurbs info --json`: faces, census, the bounding box and area of the
+/// trimmed faces (adaptive quadrature over each trim region), units, skipped.
+fn info_json(m: &NurbsModel) -> serde_json::Value {
+    use rayon::prelude::*;
+    let measures: Vec<hitex_core::nurbs::measure::TrimmedMeasure> = m
+        .surfaces
+        .par_iter()
+        .map(|s| hitex_core::nurbs::measure::trimmed_measure(&s.surface, s.range, &s.trim))
+        .collect();
+    let area: f64 = measures.iter().map(|x| x.area).sum();
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for x in &measures {
+        for k in 0..3 {
+            lo[k] = lo[k].min(x.min[k]);
+            hi[k] = hi[k].max(x.max[k]);
+        }
+    }
+    let mut census = serde_json::Map::new();
+    for k in CENSUS_KEYS {
+        let n = if m.census.is_empty() {
+            if k == "bspline" { m.surfaces.len() } else { 0 }
+        } else {
+            m.census.get(k).copied().unwrap_or(0)
+        };
+        census.insert(k.into(), n.into());
+    }
+    serde_json::json!({
+        "model": m.name,
+        "faces": m.surfaces.len(),
+        "trimmed": m.surfaces.iter().filter(|s| !s.trim.is_empty()).count(),
+        "census": census,
+        "bbox": [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]],
+        "area": area,
+        "units": m.units.clone().unwrap_or_else(|| "unitless".into()),
+        "skipped": m.warnings,
+        "repairs": m.repairs,
+        "notes": m.notes,
+    })
+}
+
 /// Loads a model, with `--chord` checked and passed to the STEP reader.
 fn load(model: &str, chord: Option<f64>) -> Result<NurbsModel, CliError> {
     if let Some(c) = chord
@@ -578,7 +692,12 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             }
             Ok(())
         }
-        NurbsCommand::Info { model, chord } => {
+        NurbsCommand::Info { model, chord, json: true } => {
+            let m = load(&model, chord)?;
+            println!("{}", serde_json::to_string_pretty(&info_json(&m)).unwrap_or_default());
+            Ok(())
+        }
+        NurbsCommand::Info { model, chord, json: false } => {
             let m = load(&model, chord)?;
             // the summary first, then one line per patch
             let mut degrees = std::collections::BTreeMap::new();
@@ -656,6 +775,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             Ok(())
         }
         NurbsCommand::Check(a) => check(a),
+        NurbsCommand::Deviation(a) => deviation(a),
         NurbsCommand::Eval { model, patch, uv, json } => {
             let m = load_model(&model)?;
             let s = m.surfaces.get(patch).ok_or_else(|| {

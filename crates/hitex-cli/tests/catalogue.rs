@@ -142,6 +142,16 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
         ],
     ));
     v.push(c(
+        "points (XYZ)",
+        "a line with two values",
+        &["nurbs", "deviation", "teapot", "--points", &w("scan.xyz", b"0 0 1\n2 3\n")],
+    ));
+    v.push(c(
+        "points (JSON)",
+        "a point of two coordinates",
+        &["nurbs", "deviation", "teapot", "--points", &w("probe.json", b"{\"points\": [[0, 0, 1], [2, 3]]}")],
+    ));
+    v.push(c(
         "STEP",
         "not a STEP file (.stp name)",
         &["nurbs", "info", &w("mesh.stp", b"solid cube\nendsolid cube\n")],
@@ -154,7 +164,9 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
             "render",
             &w(
                 "ext.stp",
-                plate.replacen("#5=PLANE('',#4);", "#5=SURFACE_OF_LINEAR_EXTRUSION('',#23,#20);", 1).as_bytes(),
+                plate
+                    .replacen("#5=PLANE('',#4);", "#5=OFFSET_SURFACE('',#51,2.,.F.);\n#51=PLANE('',#4);", 1)
+                    .as_bytes(),
             ),
             "-o",
             &out,

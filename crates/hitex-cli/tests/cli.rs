@@ -595,3 +595,49 @@ fn step_assemblies_read_render_and_check() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--chord -1 must be finite and positive"));
 }
+
+#[test]
+fn nurbs_info_json_and_deviation_measure_trimmed_faces() {
+    let plate = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/seeds/step/plate-with-hole.stp");
+    let plate = plate.to_str().unwrap();
+    // a 40 × 30 plate at z = 0 with a hole of radius 5 at (10, 5)
+    let o = hitex(&["nurbs", "info", plate, "--json"]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!(v["faces"], 1);
+    assert_eq!(v["census"]["plane"], 1);
+    assert_eq!(v["census"]["bspline"], 0);
+    assert_eq!(v["units"], "unitless");
+    let area = v["area"].as_f64().unwrap();
+    let want = 1200.0 - std::f64::consts::PI * 25.0;
+    assert!((area - want).abs() < 0.1, "{area} vs {want}");
+    let bbox: Vec<f64> = v["bbox"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    let expect = [-20.0, -15.0, 0.0, 20.0, 15.0, 0.0];
+    assert!(bbox.iter().zip(expect).all(|(a, b)| (a - b).abs() < 0.2), "{bbox:?}");
+    // IGES and named models count as B-spline patches
+    let o = hitex(&["nurbs", "info", "teapot", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!((v["faces"].as_u64(), v["census"]["bspline"].as_u64()), (Some(32), Some(32)));
+
+    // above the plate, over the hole's centre (to its rim) and beside the plate
+    let d = tmp("deviation");
+    let pts = d.join("probe.json");
+    std::fs::write(&pts, r#"{"points": [[0, 0, 2], [10, 5, 0], [30, 0, 0]]}"#).unwrap();
+    let o = hitex(&["nurbs", "deviation", plate, "--points", pts.to_str().unwrap(), "--json"]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let dist: Vec<f64> = v["distances"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    // to within the trims' chord tolerance (1/10 000 of the 50-unit diagonal)
+    for (got, want) in dist.iter().zip([2.0, 5.0, 10.0]) {
+        assert!((got - want).abs() <= 5e-3, "{dist:?}");
+    }
+    assert!((v["max"].as_f64().unwrap() - 10.0).abs() < 1e-9 && v["worst"]["index"] == 2);
+    assert!((v["rms"].as_f64().unwrap() - (43.0f64).sqrt()).abs() < 5e-3);
+    // the same as XYZ text, in words
+    let xyz = d.join("probe.xyz");
+    std::fs::write(&xyz, "0 0 2\n10 5 0\n30 0 0\n").unwrap();
+    let o = hitex(&["nurbs", "deviation", plate, "--points", xyz.to_str().unwrap()]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("3 points to 1 faces") || out.contains("3 points to 1 face"), "{out}");
+    assert!(out.contains("max 10") && out.contains("point 2"), "{out}");
+}

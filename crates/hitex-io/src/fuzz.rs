@@ -42,11 +42,13 @@ pub enum Target {
     Image,
     /// STEP (ISO 10303-21) parts and assemblies, read to trimmed patches.
     Step,
+    /// Point sets: JSON when the first byte is `{`, XYZ text otherwise.
+    Points,
 }
 
 impl Target {
     /// Every target.
-    pub const ALL: [Target; 14] = [
+    pub const ALL: [Target; 15] = [
         Target::Iges,
         Target::ObjFreeform,
         Target::NurbsJson,
@@ -61,6 +63,7 @@ impl Target {
         Target::Store,
         Target::Image,
         Target::Step,
+        Target::Points,
     ];
 
     /// The target's name: its folder under `fuzz/` and its fuzz binary.
@@ -80,6 +83,7 @@ impl Target {
             Target::Store => "store",
             Target::Image => "image",
             Target::Step => "step",
+            Target::Points => "points",
         }
     }
 
@@ -134,6 +138,7 @@ pub fn run(target: Target, data: &[u8]) -> bool {
         }
         Target::Image => crate::decode_image(data, Path::new("fuzz.png"), ColorSpace::Srgb).is_ok(),
         Target::Step => crate::step::parse_step(data, "fuzz.stp", &crate::step::StepOptions::default()).is_ok(),
+        Target::Points => crate::points::parse_points(&text(), data.first() == Some(&b'{')).is_ok(),
     }
 }
 

@@ -2,7 +2,10 @@
 //!
 //! * images: PNG and JPEG in, PNG out (atomic writes), through the `image` crate;
 //! * meshes: Wavefront OBJ through `tobj`;
-//! * scenes: TOML files whose relative paths resolve against the file's folder.
+//! * scenes: TOML files whose relative paths resolve against the file's folder;
+//! * NURBS models ([`models`]): STEP parts and assemblies ([`step`]), IGES
+//!   ([`iges`]), OBJ free-form ([`obj_freeform`]), hitex JSON ([`nurbs_json`]);
+//!   point sets to measure against them ([`points`]).
 //!
 //! Every error names the file, and the record or key where known.
 // a library prints nothing: it returns errors and warnings, or hands notices to a callback
@@ -21,6 +24,7 @@ pub mod models;
 pub mod nurbs_json;
 pub mod obj;
 pub mod obj_freeform;
+pub mod points;
 pub mod scene_file;
 pub mod step;
 

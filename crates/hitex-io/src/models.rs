@@ -26,6 +26,11 @@ pub struct NurbsModel {
     /// What the reader found, for a summary (STEP: schema, units, surface
     /// types, instances, the chord tolerance of the trims).
     pub notes: Vec<String>,
+    /// Faces by kind of surface in the file (STEP: plane, cylinder, …, skipped
+    /// faces included); empty for formats of B-spline patches only.
+    pub census: std::collections::BTreeMap<&'static str, usize>,
+    /// The length unit where the file states one (STEP: "mm", "inch", …).
+    pub units: Option<String>,
 }
 
 impl NurbsModel {
@@ -45,7 +50,15 @@ impl NurbsModel {
 }
 
 fn from_iges(name: &str, m: IgesModel) -> NurbsModel {
-    NurbsModel { name: name.to_string(), surfaces: m.surfaces, warnings: m.warnings, repairs: m.repairs, notes: vec![] }
+    NurbsModel {
+        name: name.to_string(),
+        surfaces: m.surfaces,
+        warnings: m.warnings,
+        repairs: m.repairs,
+        notes: vec![],
+        census: Default::default(),
+        units: None,
+    }
 }
 
 /// The `surface` model of Table 1: one rational bicubic patch of 6×14 control
@@ -194,7 +207,15 @@ pub fn load_model_with(spec: &str, opts: &LoadOptions) -> Result<NurbsModel, IoE
                     IgesSurface { surface: s, range, directory_entry: 0, trim: Vec::new() }
                 })
                 .collect();
-            Ok(NurbsModel { name: "spray".into(), surfaces, warnings: vec![], repairs: vec![], notes: vec![] })
+            Ok(NurbsModel {
+                name: "spray".into(),
+                surfaces,
+                warnings: vec![],
+                repairs: vec![],
+                notes: vec![],
+                census: Default::default(),
+                units: None,
+            })
         }
         "surface" => {
             let s = single_surface();
@@ -205,6 +226,8 @@ pub fn load_model_with(spec: &str, opts: &LoadOptions) -> Result<NurbsModel, IoE
                 warnings: vec![],
                 repairs: vec![],
                 notes: vec![],
+                census: Default::default(),
+                units: None,
             })
         }
         path => {
@@ -213,7 +236,15 @@ pub fn load_model_with(spec: &str, opts: &LoadOptions) -> Result<NurbsModel, IoE
             match ext.as_deref() {
                 Some("obj") => {
                     let (surfaces, warnings) = crate::obj_freeform::load_obj_freeform_warned(p)?;
-                    Ok(NurbsModel { name: path.to_string(), surfaces, warnings, repairs: vec![], notes: vec![] })
+                    Ok(NurbsModel {
+                        name: path.to_string(),
+                        surfaces,
+                        warnings,
+                        repairs: vec![],
+                        notes: vec![],
+                        census: Default::default(),
+                        units: None,
+                    })
                 }
                 Some("json") => {
                     let surfaces = crate::nurbs_json::load_nurbs_json(p)?;
@@ -223,6 +254,8 @@ pub fn load_model_with(spec: &str, opts: &LoadOptions) -> Result<NurbsModel, IoE
                         warnings: vec![],
                         repairs: vec![],
                         notes: vec![],
+                        census: Default::default(),
+                        units: None,
                     })
                 }
                 Some("stp") | Some("step") | Some("p21") => {
@@ -266,6 +299,8 @@ pub fn load_model_with(spec: &str, opts: &LoadOptions) -> Result<NurbsModel, IoE
                         warnings: m.warnings,
                         repairs: m.repairs,
                         notes,
+                        census: m.census,
+                        units: Some(m.length_unit),
                     })
                 }
                 Some("igs") | Some("iges") => {

@@ -14,6 +14,7 @@ pub mod basis;
 pub mod continuity;
 pub mod elevate;
 pub mod knots;
+pub mod measure;
 pub mod surface;
 
 pub use basis::{MAX_DEGREE, basis_ders_fixed, basis_ders_paper, basis_funs, ders_basis_funs};

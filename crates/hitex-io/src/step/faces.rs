@@ -26,6 +26,10 @@ use std::f64::consts::TAU;
 /// Deepest chord bisection along one edge piece (2¹² samples).
 const MAX_BISECT: usize = 12;
 
+/// Most trim samples of one face (a damaged file whose edges lie off their
+/// surface would otherwise bisect every piece to the bottom).
+pub(crate) const MAX_FACE_SAMPLES: usize = 1 << 18;
+
 /// What a face became: a patch, or why not.
 pub(crate) fn build_face(m: &Model, face_id: u64, tol: f64) -> Result<IgesSurface, String> {
     let r = m.record(face_id)?;
@@ -40,6 +44,7 @@ pub(crate) fn build_face(m: &Model, face_id: u64, tol: f64) -> Result<IgesSurfac
 
     let mut loops: Vec<(Vec<DVec2>, bool)> = Vec::new();
     let mut poles: Vec<DVec2> = Vec::new();
+    let mut budget = MAX_FACE_SAMPLES;
     for b in bounds {
         let bid = reference(Some(b), face_id, "bound")?;
         let br = m.record(bid)?;
@@ -62,9 +67,10 @@ pub(crate) fn build_face(m: &Model, face_id: u64, tol: f64) -> Result<IgesSurfac
                 let x = m.point(reference(Some(q), loop_id, "polygon point")?)?;
                 out.push(surf.project(x, out.last().copied()));
             }
-            if let Some(&f) = out.first() {
-                out.push(f);
-            }
+            let Some(&f) = out.first() else {
+                return Err(format!("POLY_LOOP #{loop_id} has no points"));
+            };
+            out.push(f);
             loops.push((out, orientation));
             continue;
         }
@@ -83,12 +89,13 @@ pub(crate) fn build_face(m: &Model, face_id: u64, tol: f64) -> Result<IgesSurfac
             let geom = reference(ec.get(3), edge_id, "edge_geometry")?;
             let same = ec.get(4).and_then(Param::logical).unwrap_or(true);
             let (vs, ve) = if forward { (v1, v2) } else { (v2, v1) };
-            sample_edge(m, &surf, surf_id, geom, (vs, ve), same == forward, tol, &mut pts)
+            sample_edge(m, &surf, surf_id, geom, (vs, ve), same == forward, tol, &mut pts, &mut budget)
                 .map_err(|e| format!("edge #{edge_id}: {e}"))?;
         }
         if pts.len() < 2 {
             return Err(format!("loop #{loop_id} has fewer than two points"));
         }
+        budget = budget.saturating_sub(pts.len());
         loops.push((pts, orientation));
     }
 
@@ -101,34 +108,26 @@ pub(crate) fn build_face(m: &Model, face_id: u64, tol: f64) -> Result<IgesSurfac
         }
     }
     let (lo, hi) = (map.apply(DVec2::new(window[0].0, window[1].0)), map.apply(DVec2::new(window[0].1, window[1].1)));
-    let mut range = ((lo[0], hi[0]), (lo[1], hi[1]));
+    // within the B-spline's domain (a swept B-spline curve keeps its own range)
+    let dom = nurbs.domain();
+    let mut range = ((lo[0].max(dom.0.0), hi[0].min(dom.0.1)), (lo[1].max(dom.1.0), hi[1].min(dom.1.1)));
     if let Kind::Spline(n) = &surf.kind {
         range = n.domain();
     }
     if !same_sense {
-        // the face's normal is the surface's reversed: reverse u so that Su × Sv points out of the face
+        // the face's normal is the surface's reversed: reverse u so that Su × Sv
+        // points out of the face (mirrored about the knot vector's ends, as reverse_u does)
+        let c = nurbs.knots_u[0] + nurbs.knots_u[nurbs.knots_u.len() - 1];
         nurbs = reverse_u(&nurbs);
-        let ((u0, u1), _) = range;
         for l in &mut trims {
             for p in l.iter_mut() {
-                p.x = u0 + u1 - p.x;
+                p.x = c - p.x;
             }
         }
-        let d = nurbs.domain();
-        range = ((u0 + u1 - range.0.1, u0 + u1 - range.0.0).clamp_to(d.0), range.1);
+        range = ((c - range.0.1, c - range.0.0), range.1);
     }
     let trim = trims.into_iter().map(|l| l.into_iter().map(|p| [p.x, p.y]).collect()).collect();
     Ok(IgesSurface { surface: nurbs, range, directory_entry: face_id as usize, trim })
-}
-
-trait ClampTo {
-    fn clamp_to(self, d: (f64, f64)) -> Self;
-}
-
-impl ClampTo for (f64, f64) {
-    fn clamp_to(self, d: (f64, f64)) -> Self {
-        (self.0.max(d.0), self.1.min(d.1))
-    }
 }
 
 fn vertex(m: &Model, id: u64) -> Result<DVec3, String> {
@@ -162,6 +161,7 @@ fn sample_edge(
     along: bool,
     tol: f64,
     out: &mut Vec<DVec2>,
+    budget: &mut usize,
 ) -> Result<(), String> {
     let curve = m.curve(geom, 0)?;
     let (a, b) = (vertex(m, ends.0)?, vertex(m, ends.1)?);
@@ -199,6 +199,12 @@ fn sample_edge(
         bisect(&curve, surf, &uv_of, prev, next, tol, 0, out);
         out.push(next.1);
         prev = next;
+        if out.len() > *budget {
+            return Err(format!(
+                "its trims need more than {MAX_FACE_SAMPLES} samples at a chord of {tol:.3e}: \
+                 an edge may lie off its surface (or set a coarser --chord)"
+            ));
+        }
     }
     Ok(())
 }
@@ -405,18 +411,22 @@ fn reverse_u(s: &NurbsSurface) -> NurbsSurface {
     NurbsSurface { knots_u, points, ..s.clone() }
 }
 
-/// The model's size from its vertices, for the default chord tolerance.
-pub(crate) fn vertex_extent(m: &Model) -> f64 {
+/// The centre and size of the model's vertices (the default chord tolerance
+/// is a fraction of the size).
+pub(crate) fn vertex_extent(records: &std::collections::HashMap<u64, super::part21::Record>) -> (DVec3, f64) {
+    let m = Model { records, angle_unit: 1.0, centre: DVec3::ZERO, size: 1.0 };
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    for (id, r) in m.records {
+    for (id, r) in records {
         if r.is("VERTEX_POINT")
-            && let Ok(p) = vertex(m, *id)
+            && let Ok(p) = vertex(&m, *id)
+            && p.is_finite()
         {
             lo = lo.min(p);
             hi = hi.max(p);
         }
     }
-    if lo.x.is_finite() { (hi - lo).length() } else { 0.0 }
+    let size = (hi - lo).length();
+    if size.is_finite() { (0.5 * (lo + hi), size) } else { (DVec3::ZERO, 0.0) }
 }
 
 #[cfg(test)]

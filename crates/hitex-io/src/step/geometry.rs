@@ -22,6 +22,10 @@ pub(crate) struct Model<'a> {
     pub records: &'a HashMap<u64, Record>,
     /// Radians per unit of plane angle in this file (1, or π/180 for degrees).
     pub angle_unit: f64,
+    /// Centre and size of the model's vertices: where unbounded surfaces
+    /// (extrusions of lines) are cut for point inversion.
+    pub centre: DVec3,
+    pub size: f64,
 }
 
 /// A message about entity `id`.
@@ -49,10 +53,9 @@ impl<'a> Model<'a> {
         let p = self.params(id, "DIRECTION")?;
         let c = coords(p.get(1), id, "direction ratios")?;
         let d = DVec3::new(c[0], c.get(1).copied().unwrap_or(0.0), c.get(2).copied().unwrap_or(0.0));
-        if d.length() <= 1e-300 {
-            return Err(format!("#{id}: DIRECTION of zero length"));
-        }
-        Ok(d.normalize())
+        // scaled first, so that huge ratios normalise instead of overflowing
+        let m = d.abs().max_element();
+        (d / m).try_normalize().filter(|_| m > 0.0).ok_or_else(|| format!("#{id}: DIRECTION of zero length"))
     }
 
     /// `VECTOR(name, orientation, magnitude)` as a vector.
@@ -93,7 +96,10 @@ impl<'a> Model<'a> {
             return Err(format!("#{id}: curves nest too deeply"));
         }
         let r = self.record(id)?;
-        if r.is("B_SPLINE_CURVE") || r.is("B_SPLINE_CURVE_WITH_KNOTS") || r.is("BEZIER_CURVE") {
+        if ["B_SPLINE_CURVE", "B_SPLINE_CURVE_WITH_KNOTS", "BEZIER_CURVE", "UNIFORM_CURVE", "QUASI_UNIFORM_CURVE"]
+            .iter()
+            .any(|n| r.is(n))
+        {
             return self.spline_curve(id, r);
         }
         let (name, p) = (r.parts[0].0.as_str(), r.parts[0].1.as_slice());
@@ -175,7 +181,7 @@ impl<'a> Model<'a> {
         let knots = match knots_part {
             Some(k) => expand_knots(k.first(), k.get(1), id)?,
             // Bézier (or a plain B_SPLINE_CURVE): clamped, uniform pieces
-            None => bezier_knots(n, degree),
+            None => implied_knots(r, n, degree),
         };
         if knots.len() != n + degree + 1 {
             return Err(format!(
@@ -206,12 +212,96 @@ impl<'a> Model<'a> {
             return Err(format!("#{id}: surfaces nest too deeply"));
         }
         let r = self.record(id)?;
-        if r.is("B_SPLINE_SURFACE") || r.is("B_SPLINE_SURFACE_WITH_KNOTS") || r.is("BEZIER_SURFACE") {
-            return Ok(Surface { frame: Frame::IDENTITY, kind: Kind::Spline(self.spline_surface(id, r)?) });
+        if [
+            "B_SPLINE_SURFACE",
+            "B_SPLINE_SURFACE_WITH_KNOTS",
+            "BEZIER_SURFACE",
+            "UNIFORM_SURFACE",
+            "QUASI_UNIFORM_SURFACE",
+        ]
+        .iter()
+        .any(|n| r.is(n))
+        {
+            return Ok(Surface::new(Frame::IDENTITY, Kind::Spline(self.spline_surface(id, r)?)));
         }
         let (name, p) = (r.parts[0].0.as_str(), r.parts[0].1.as_slice());
+        match name {
+            "RECTANGULAR_TRIMMED_SURFACE" => {
+                // (name, basis_surface, u1, u2, v1, v2, usense, vsense): the basis within those limits
+                let mut basis = self.surface(reference(p.get(1), id, "basis_surface")?, depth + 1)?;
+                let mut lim = [0.0; 4];
+                for (k, l) in lim.iter_mut().enumerate() {
+                    *l = number(p.get(2 + k), id, ["u1", "u2", "v1", "v2"][k])?;
+                }
+                let angle = basis.angular();
+                let scale = |d: usize| if angle[d] { self.angle_unit } else { 1.0 };
+                let (mut u, mut v) = ((lim[0] * scale(0), lim[1] * scale(0)), (lim[2] * scale(1), lim[3] * scale(1)));
+                if basis.periodic()[0] && u.1 <= u.0 {
+                    u.1 += TAU;
+                }
+                if basis.periodic()[1] && v.1 <= v.0 {
+                    v.1 += TAU;
+                }
+                let b = [(u.0.min(u.1), u.0.max(u.1)), (v.0.min(v.1), v.0.max(v.1))];
+                for d in 0..2 {
+                    let (lo, hi) = b[d];
+                    if !(lo.is_finite() && hi.is_finite() && hi > lo) || (angle[d] && hi - lo > TAU + 1e-9) {
+                        return Err(format!("#{id}: parameter limits {lo}..{hi} are empty or more than a turn"));
+                    }
+                }
+                basis.bounds = Some(b);
+                return Ok(basis);
+            }
+            "SURFACE_OF_LINEAR_EXTRUSION" => {
+                // σ(u, v) = λ(u) + v·V
+                let curve = self.curve(reference(p.get(1), id, "swept_curve")?, 0)?;
+                let axis = self.vector(reference(p.get(2), id, "extrusion_axis")?)?;
+                if axis.length() <= 0.0 {
+                    return Err(format!("#{id}: extrusion axis of zero length"));
+                }
+                if let Curve::Line { d, .. } = &curve
+                    && d.normalize().cross(axis.normalize()).length() < 1e-12
+                {
+                    return Err(format!("#{id}: a line extruded along itself sweeps no surface"));
+                }
+                return Ok(Surface::new(Frame::IDENTITY, Kind::Extrusion { curve, axis }).near(self.centre, self.size));
+            }
+            "SURFACE_OF_REVOLUTION" => {
+                // σ(u, v) = λ(v) turned by u about the axis
+                let curve = self.curve(reference(p.get(1), id, "swept_curve")?, 0)?;
+                let ap = self.params(reference(p.get(2), id, "axis_position")?, "AXIS1_PLACEMENT")?;
+                let o = self.point(reference(ap.get(1), id, "axis location")?)?;
+                let z = match ap.get(2).and_then(Param::reference) {
+                    Some(d) => self.direction(d)?,
+                    None => DVec3::Z,
+                };
+                // the angle is measured from the curve's own direction off the axis
+                let (t0, t1) = curve.range();
+                let mut x = DVec3::ZERO;
+                for k in 0..=8 {
+                    let d = curve.point(t0 + (t1 - t0) * k as f64 / 8.0) - o;
+                    let r = d - z * d.dot(z);
+                    if r.length() > x.length() {
+                        x = r;
+                    }
+                }
+                if x.length() <= 0.0 {
+                    return Err(format!("#{id}: the swept curve lies on the axis"));
+                }
+                return Ok(Surface::new(Frame::new(o, z, x), Kind::Revolution { curve }).near(self.centre, self.size));
+            }
+            "OFFSET_SURFACE" => {
+                let d = number(p.get(2), id, "distance").unwrap_or(f64::NAN);
+                let basis = p.get(1).and_then(Param::reference).map_or("?".into(), |b| format!("#{b}"));
+                return Err(format!(
+                    "OFFSET_SURFACE (distance {d} from {basis}) is not drawn yet: its exact point S + d·N needs an \
+                     evaluation of its own per fragment"
+                ));
+            }
+            _ => {}
+        }
         let frame = || self.frame(reference(p.get(1), id, "position")?);
-        let kind = match name {
+        let kind: Kind = match name {
             "PLANE" => Kind::Plane,
             "CYLINDRICAL_SURFACE" => Kind::Cylinder { r: positive(p.get(2), id, "radius")? },
             "CONICAL_SURFACE" => {
@@ -233,7 +323,7 @@ impl<'a> Model<'a> {
             }
             other => return Err(format!("{other} surfaces are not read yet")),
         };
-        Ok(Surface { frame: frame()?, kind })
+        Ok(Surface::new(frame()?, kind))
     }
 
     fn spline_surface(&self, id: u64, r: &Record) -> GeomResult<NurbsSurface> {
@@ -293,21 +383,38 @@ impl<'a> Model<'a> {
         };
         let (ku, kv) = match knots_part {
             Some(k) => (expand_knots(k.first(), k.get(2), id)?, expand_knots(k.get(1), k.get(3), id)?),
-            None => (bezier_knots(nu, du), bezier_knots(nv, dv)),
+            None => (implied_knots(r, nu, du), implied_knots(r, nv, dv)),
         };
         let pts = grid.iter().zip(&weights).map(|(p, w)| [p.x, p.y, p.z, *w]).collect();
         NurbsSurface::new(du, dv, nu, nv, ku, kv, pts).map_err(|e| format!("#{id}: {e}"))
     }
 }
 
-fn bezier_knots(n: usize, degree: usize) -> Vec<f64> {
-    // n = k·degree + 1 points make k Bézier pieces; otherwise one clamped span set
-    let mut k = vec![0.0; degree + 1];
-    let inner = n - degree - 1;
-    for i in 1..=inner {
-        k.push(i as f64 / (inner + 1) as f64);
+/// Knots implied by a B-spline entity that lists none (ISO 10303-42):
+/// uniform (−p, −p+1, …), quasi-uniform (ends repeated p+1 times, unit steps
+/// between) or Bézier (pieces of p+1 points joined at knots of multiplicity p).
+fn implied_knots(r: &Record, n: usize, degree: usize) -> Vec<f64> {
+    let uniform = r.is("UNIFORM_SURFACE") || r.is("UNIFORM_CURVE");
+    let bezier = r.is("BEZIER_SURFACE") || r.is("BEZIER_CURVE");
+    if uniform {
+        return (0..n + degree + 1).map(|i| i as f64 - degree as f64).collect();
     }
-    k.extend(std::iter::repeat_n(1.0, degree + 1));
+    if bezier && (n - 1).is_multiple_of(degree) {
+        let pieces = (n - 1) / degree;
+        let mut k = vec![0.0; degree + 1];
+        for i in 1..pieces {
+            k.extend(std::iter::repeat_n(i as f64, degree));
+        }
+        k.extend(std::iter::repeat_n(pieces as f64, degree + 1));
+        return k;
+    }
+    // quasi-uniform (and a Bézier entity whose point count makes no whole pieces)
+    let inner = n - degree - 1;
+    let mut k = vec![0.0; degree + 1];
+    for i in 1..=inner {
+        k.push(i as f64);
+    }
+    k.extend(std::iter::repeat_n((inner + 1) as f64, degree + 1));
     k
 }
 
@@ -396,6 +503,10 @@ impl Frame {
     }
 }
 
+/// A curve as a rational B-spline: degree, knots, Cartesian control points
+/// with weights, and the arc mapping an ellipse's angle to its parameter.
+pub(crate) type CurveNurbs = (usize, Vec<f64>, Vec<(DVec3, f64)>, Option<Arc>);
+
 /// A curve bounding a face.
 #[derive(Debug, Clone)]
 pub(crate) enum Curve {
@@ -465,6 +576,46 @@ impl Curve {
             }
             Curve::Polyline(p) => p.len(),
         }
+    }
+
+    /// A parameter window covering the curve, `reach` either side of the
+    /// point nearest `centre` where it is unbounded (a line).
+    pub fn window(&self, centre: DVec3, reach: f64) -> (f64, f64) {
+        match self {
+            Curve::Line { o, d } => {
+                let t = (centre - *o).dot(*d) / d.length_squared();
+                let r = reach / d.length();
+                (t - r, t + r)
+            }
+            other => other.range(),
+        }
+    }
+
+    /// The curve as a rational B-spline over `(t0, t1)` of its parameter:
+    /// degree, knots, Cartesian control points with weights, and for an
+    /// ellipse the arc that maps its angle to the B-spline's parameter.
+    /// B-spline curves and polylines keep their whole parameter range.
+    pub fn to_nurbs(&self, (t0, t1): (f64, f64)) -> GeomResult<CurveNurbs> {
+        Ok(match self {
+            Curve::Line { .. } => (1, vec![t0, t0, t1, t1], vec![(self.point(t0), 1.0), (self.point(t1), 1.0)], None),
+            Curve::Ellipse { f, a, b } => {
+                let arc = Arc::new(t0, t1)?;
+                let (knots, ctrl) = arc.control();
+                let pts = ctrl.iter().map(|c| (f.o + f.x * (a * c.0) + f.y * (b * c.1), c.2)).collect();
+                (2, knots, pts, Some(arc))
+            }
+            Curve::Spline { degree, knots, pw } => {
+                let pts = pw.iter().map(|q| (DVec3::new(q[0], q[1], q[2]) / q[3], q[3])).collect();
+                (*degree, knots.clone(), pts, None)
+            }
+            Curve::Polyline(p) => {
+                let n = p.len();
+                let mut knots = vec![0.0];
+                knots.extend((0..n).map(|i| i as f64));
+                knots.push((n - 1) as f64);
+                (1, knots, p.iter().map(|q| (*q, 1.0)).collect(), None)
+            }
+        })
     }
 
     /// Whether the curve is exactly the straight chord between any two of
@@ -543,6 +694,10 @@ pub(crate) enum Kind {
     Torus { big: f64, small: f64 },
     /// Its own knot parameters.
     Spline(NurbsSurface),
+    /// `λ(s) + t·axis` (s: the curve's parameter)
+    Extrusion { curve: Curve, axis: DVec3 },
+    /// `λ(t)` turned by s about the frame's z axis through its origin
+    Revolution { curve: Curve },
 }
 
 /// A surface in its own parameters.
@@ -550,16 +705,67 @@ pub(crate) enum Kind {
 pub(crate) struct Surface {
     pub frame: Frame,
     pub kind: Kind,
+    /// Parameter limits of a RECTANGULAR_TRIMMED_SURFACE.
+    pub bounds: Option<[(f64, f64); 2]>,
+    /// Where the model is and how far points lie from it (for surfaces
+    /// inverted on a provisional patch), and that patch once built.
+    near: (DVec3, f64),
+    patch: std::sync::OnceLock<Option<(NurbsSurface, ParamMap)>>,
 }
 
 impl Surface {
-    /// Which parameters are angles (periodic with period 2π).
+    pub fn new(frame: Frame, kind: Kind) -> Surface {
+        Surface { frame, kind, bounds: None, near: (DVec3::ZERO, 1.0), patch: std::sync::OnceLock::new() }
+    }
+
+    /// The model's centre and size, for inversion patches of unbounded surfaces.
+    fn near(mut self, centre: DVec3, size: f64) -> Surface {
+        self.near = (centre, if size.is_finite() && size > 0.0 { size } else { 1.0 });
+        self
+    }
+
+    /// Which parameters are periodic with period 2π.
     pub fn periodic(&self) -> [bool; 2] {
-        match self.kind {
+        match &self.kind {
             Kind::Plane | Kind::Spline(_) => [false, false],
             Kind::Cylinder { .. } | Kind::Cone { .. } | Kind::Sphere { .. } => [true, false],
             Kind::Torus { .. } => [true, true],
+            Kind::Extrusion { curve, .. } => [curve.period().is_some(), false],
+            Kind::Revolution { curve } => [true, curve.period().is_some()],
         }
+    }
+
+    /// Which parameters are angles (in the file's plane-angle unit where the
+    /// file gives them).
+    pub fn angular(&self) -> [bool; 2] {
+        match &self.kind {
+            Kind::Sphere { .. } => [true, true],
+            _ => self.periodic(),
+        }
+    }
+
+    /// A provisional B-spline to invert points on, for surfaces with no
+    /// closed-form inversion, reaching twice the model's size past its centre
+    /// where the surface is unbounded; built once.
+    fn inversion_patch(&self) -> Option<&(NurbsSurface, ParamMap)> {
+        self.patch
+            .get_or_init(|| {
+                let (centre, size) = self.near;
+                let reach = 2.0 * size + (centre - self.frame.o).length();
+                let win = match &self.kind {
+                    Kind::Extrusion { curve, axis } => {
+                        let w = curve.window(centre, reach);
+                        let mid = curve.point(0.5 * (w.0 + w.1));
+                        let v = (centre - mid).dot(*axis) / axis.length_squared();
+                        let r = reach / axis.length();
+                        [w, (v - r, v + r)]
+                    }
+                    Kind::Revolution { curve } => [(0.0, TAU), curve.window(centre, reach)],
+                    _ => return None,
+                };
+                self.to_nurbs(win).ok()
+            })
+            .as_ref()
     }
 
     /// The point at parameters `(s, t)`.
@@ -576,6 +782,13 @@ impl Surface {
             Kind::Spline(n) => {
                 let p = n.point(s, t);
                 DVec3::from_array(p)
+            }
+            Kind::Extrusion { curve, axis } => curve.point(s) + *axis * t,
+            Kind::Revolution { curve } => {
+                let d = curve.point(t) - f.o;
+                let z = f.z * d.dot(f.z);
+                let r = d - z;
+                f.o + z + r * s.cos() + f.z.cross(r) * s.sin()
             }
         }
     }
@@ -614,12 +827,49 @@ impl Surface {
                 let (uv, _) = hitex_core::nurbs::continuity::invert(n, range, q.to_array(), start);
                 DVec2::new(uv[0], uv[1])
             }
+            Kind::Extrusion { .. } | Kind::Revolution { .. } => {
+                // Newton on a provisional patch reaching past the point, then back to own parameters
+                let Some((n, map)) = self.inversion_patch() else { return hint.unwrap_or(DVec2::ZERO) };
+                let invert =
+                    |start: [f64; 2]| hitex_core::nurbs::continuity::invert(n, n.domain(), q.to_array(), start);
+                // from the hint, its angles brought into the patch's turn [0, 2π) ...
+                let mut best = hint.map(|h| {
+                    let mut h = h;
+                    for d in 0..2 {
+                        if self.periodic()[d] {
+                            h[d] = h[d].rem_euclid(TAU);
+                        }
+                    }
+                    invert(map.apply(h))
+                });
+                // ... and from the nearest of a coarse grid when that did not land on the surface
+                let on_surface = 1e-9 * (1.0 + self.near.1 + (q - self.near.0).length());
+                if best.is_none_or(|b| b.1 > on_surface) {
+                    let other = invert(coarse_start(n, q));
+                    if best.is_none_or(|b| other.1 < b.1) {
+                        best = Some(other);
+                    }
+                }
+                let uv = best.map_or([0.0; 2], |b| b.0);
+                let mut st = map.invert([uv[0], uv[1]]);
+                for d in 0..2 {
+                    if self.periodic()[d]
+                        && let Some(h) = hint
+                    {
+                        st[d] += TAU * ((h[d] - st[d]) / TAU).round();
+                    }
+                }
+                st
+            }
         }
     }
 
     /// The natural parameter window where the surface is bounded without
     /// trims (sphere, torus, B-spline), if it has one.
     pub fn natural_window(&self) -> Option<[(f64, f64); 2]> {
+        if self.bounds.is_some() {
+            return self.bounds;
+        }
         match &self.kind {
             Kind::Sphere { .. } => Some([(0.0, TAU), (-FRAC_PI_2, FRAC_PI_2)]),
             Kind::Torus { .. } => Some([(0.0, TAU), (0.0, TAU)]),
@@ -650,27 +900,47 @@ impl Surface {
             }
             Kind::Cylinder { r } => {
                 let prof = [(*r, t0, 1.0), (*r, t1, 1.0)];
-                let arc = Arc::new(s0, s1);
+                let arc = Arc::new(s0, s1)?;
                 Ok((revolve(f, &arc, &prof, 1, &[t0, t0, t1, t1])?, ParamMap { s: Some(arc), t: None }))
             }
             Kind::Cone { r, tan } => {
                 let prof = [(r + t0 * tan, t0, 1.0), (r + t1 * tan, t1, 1.0)];
-                let arc = Arc::new(s0, s1);
+                let arc = Arc::new(s0, s1)?;
                 Ok((revolve(f, &arc, &prof, 1, &[t0, t0, t1, t1])?, ParamMap { s: Some(arc), t: None }))
             }
             Kind::Sphere { r } => {
-                let (arc, varc) = (Arc::new(s0, s1), Arc::new(t0, t1));
+                let (arc, varc) = (Arc::new(s0, s1)?, Arc::new(t0, t1)?);
                 let (knots, ctrl) = varc.control();
                 let prof: Vec<(f64, f64, f64)> = ctrl.iter().map(|c| (r * c.0, r * c.1, c.2)).collect();
                 Ok((revolve(f, &arc, &prof, 2, &knots)?, ParamMap { s: Some(arc), t: Some(varc) }))
             }
             Kind::Torus { big, small } => {
-                let (arc, varc) = (Arc::new(s0, s1), Arc::new(t0, t1));
+                let (arc, varc) = (Arc::new(s0, s1)?, Arc::new(t0, t1)?);
                 let (knots, ctrl) = varc.control();
                 let prof: Vec<(f64, f64, f64)> = ctrl.iter().map(|c| (big + small * c.0, small * c.1, c.2)).collect();
                 Ok((revolve(f, &arc, &prof, 2, &knots)?, ParamMap { s: Some(arc), t: Some(varc) }))
             }
             Kind::Spline(n) => Ok((n.clone(), ParamMap { s: None, t: None })),
+            Kind::Extrusion { curve, axis } => {
+                let (degree, knots, ctrl, arc) = curve.to_nurbs((s0, s1))?;
+                let mut pts = Vec::with_capacity(2 * ctrl.len());
+                for t in [t0, t1] {
+                    for (p, w) in &ctrl {
+                        let q = *p + *axis * t;
+                        pts.push([q.x, q.y, q.z, *w]);
+                    }
+                }
+                let s = NurbsSurface::new(degree, 1, ctrl.len(), 2, knots, vec![t0, t0, t1, t1], pts)
+                    .map_err(|e| e.to_string())?;
+                Ok((s, ParamMap { s: arc, t: None }))
+            }
+            Kind::Revolution { curve } => {
+                let (degree, knots, ctrl, varc) = curve.to_nurbs((t0, t1))?;
+                let arc = Arc::new(s0, s1)?;
+                // each profile point in the axis frame: (ρ along its own radial direction, z)
+                let prof: Vec<(DVec3, f64)> = ctrl;
+                Ok((revolve3(f, &arc, &prof, degree, &knots)?, ParamMap { s: Some(arc), t: varc }))
+            }
         }
     }
 }
@@ -704,6 +974,12 @@ impl ParamMap {
         let f = |a: &Option<Arc>, x: f64| a.as_ref().map_or(x, |a| a.param(x));
         [f(&self.s, st.x), f(&self.t, st.y)]
     }
+
+    /// The surface's own parameters at B-spline parameters `uv`.
+    pub fn invert(&self, uv: [f64; 2]) -> DVec2 {
+        let f = |a: &Option<Arc>, x: f64| a.as_ref().map_or(x, |a| a.angle(x));
+        DVec2::new(f(&self.s, uv[0]), f(&self.t, uv[1]))
+    }
 }
 
 /// A circular arc from angle `a0` to `a1` (radians, a1 > a0, at most a turn)
@@ -717,9 +993,13 @@ pub(crate) struct Arc {
 }
 
 impl Arc {
-    pub fn new(a0: f64, a1: f64) -> Arc {
-        let pieces = (((a1 - a0) / FRAC_PI_2) - 1e-9).ceil().max(1.0) as usize;
-        Arc { a0, a1, pieces }
+    /// An arc of at most one turn (anything else is no face's window).
+    pub fn new(a0: f64, a1: f64) -> GeomResult<Arc> {
+        if !(a0.is_finite() && a1.is_finite() && a1 > a0 && a1 - a0 <= TAU + 1e-9) {
+            return Err(format!("an angular range from {a0} to {a1} rad is not within one turn"));
+        }
+        let pieces = (((a1 - a0) / FRAC_PI_2) - 1e-9).ceil().clamp(1.0, 4.0) as usize;
+        Ok(Arc { a0, a1, pieces })
     }
 
     fn step(&self) -> f64 {
@@ -758,6 +1038,37 @@ impl Arc {
         let tau = 0.5 + (0.5 * psi).tan() / (2.0 * (0.25 * d).tan());
         a + d * tau.clamp(0.0, 1.0)
     }
+
+    /// The angle at B-spline parameter `u` (the inverse of [`Arc::param`]).
+    pub fn angle(&self, u: f64) -> f64 {
+        let d = self.step();
+        let k = (((u - self.a0) / d).floor().max(0.0) as usize).min(self.pieces - 1);
+        let a = self.a0 + d * k as f64;
+        let tau = ((u - a) / d).clamp(0.0, 1.0);
+        a + 0.5 * d + 2.0 * ((2.0 * tau - 1.0) * (0.25 * d).tan()).atan()
+    }
+}
+
+/// Revolves profile control points `(P, w)` (anywhere in space) through
+/// `arc` about the frame's z axis (NURBS Book A8.1, each point turned from
+/// its own radial direction).
+fn revolve3(f: &Frame, arc: &Arc, profile: &[(DVec3, f64)], degree: usize, knots: &[f64]) -> GeomResult<NurbsSurface> {
+    let (uknots, circle) = arc.control();
+    let (nu, nv) = (circle.len(), profile.len());
+    let mut pts = Vec::with_capacity(nu * nv);
+    for (p, wv) in profile {
+        let d = *p - f.o;
+        let z = f.z * d.dot(f.z);
+        let r = d - z;
+        let rho = r.length();
+        let x = if rho > 0.0 { r / rho } else { f.x };
+        let y = f.z.cross(x);
+        for (cx, cy, wu) in &circle {
+            let q = f.o + z + (x * *cx + y * *cy) * rho;
+            pts.push([q.x, q.y, q.z, wu * wv]);
+        }
+    }
+    NurbsSurface::new(2, degree, nu, nv, uknots, knots.to_vec(), pts).map_err(|e| e.to_string())
 }
 
 /// Revolves a profile given in the frame's (ρ along x, z along the axis)
@@ -800,7 +1111,7 @@ mod tests {
     #[test]
     fn arc_parameters_land_on_their_angles() {
         for (a0, a1) in [(0.0, 0.3), (-1.0, 2.0), (0.5, 0.5 + TAU), (2.0, 2.0 + PI)] {
-            let arc = Arc::new(a0, a1);
+            let arc = Arc::new(a0, a1).unwrap();
             let (knots, ctrl) = arc.control();
             let pw: Vec<[f64; 4]> = ctrl.iter().map(|c| [c.0 * c.2, c.1 * c.2, 0.0, c.2]).collect();
             let curve = Curve::Spline { degree: 2, knots, pw };
@@ -823,7 +1134,7 @@ mod tests {
             Kind::Torus { big: 4.0, small: 1.0 },
         ];
         for kind in kinds {
-            let s = Surface { frame: f, kind };
+            let s = Surface::new(f, kind);
             let win = match s.kind {
                 Kind::Sphere { .. } => [(0.2, 5.0), (-1.2, 0.9)],
                 Kind::Torus { .. } => [(-1.0, 2.5), (0.0, TAU)],

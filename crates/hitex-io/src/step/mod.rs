@@ -78,6 +78,10 @@ pub struct StepModel {
     pub chord_tolerance: f64,
     /// Faces by surface type (`PLANE`, `CYLINDRICAL_SURFACE`, …), as read.
     pub surface_types: BTreeMap<String, usize>,
+    /// Placed faces by kind of surface (`plane`, `cylinder`, `cone`, `sphere`,
+    /// `torus`, `bspline`, `revolution`, `extrusion`, `offset`, `other`),
+    /// skipped faces included.
+    pub census: BTreeMap<&'static str, usize>,
     /// Part instances placed (1 for a single part).
     pub instances: usize,
 }
@@ -110,13 +114,12 @@ pub fn parse_step(bytes: &[u8], name: &str, opts: &StepOptions) -> Result<StepMo
     }
     let (angle_unit, length_unit) = units(records);
     out.length_unit = length_unit;
-    let model = Model { records, angle_unit };
-
     let instances = placed_faces(records);
     if instances.is_empty() {
         return Err(fail(no_faces_message(records)));
     }
-    let size = faces::vertex_extent(&model);
+    let (centre, size) = faces::vertex_extent(records);
+    let model = Model { records, angle_unit, centre, size };
     let tol = match opts.chord_tolerance {
         Some(t) if t > 0.0 && t.is_finite() => t,
         Some(t) => return Err(fail(format!("chord tolerance {t} must be positive"))),
@@ -133,6 +136,7 @@ pub fn parse_step(bytes: &[u8], name: &str, opts: &StepOptions) -> Result<StepMo
     let mut built: HashMap<u64, Option<IgesSurface>> = HashMap::new();
     let mut skipped: BTreeMap<String, Vec<u64>> = BTreeMap::new();
     for (face, _, m) in &instances {
+        *out.census.entry(census_key(&surface_type(records, *face))).or_default() += 1;
         let patch = built.entry(*face).or_insert_with(|| match faces::build_face(&model, *face, tol) {
             Ok(p) => {
                 let kind = surface_type(records, *face);
@@ -150,6 +154,11 @@ pub fn parse_step(bytes: &[u8], name: &str, opts: &StepOptions) -> Result<StepMo
             let mut p = p.clone();
             if *m != DMat4::IDENTITY {
                 geometry::transform_surface(&mut p.surface, m);
+                // a placement of huge or broken coordinates makes no drawable surface
+                if !p.surface.points.iter().all(|q| q.iter().all(|x| x.is_finite() && x.abs() <= 1e150)) {
+                    skipped.entry("its placement moves it beyond finite coordinates".into()).or_default().push(*face);
+                    continue;
+                }
             }
             out.surfaces.push(p);
         }
@@ -173,16 +182,49 @@ pub fn parse_step(bytes: &[u8], name: &str, opts: &StepOptions) -> Result<StepMo
     Ok(out)
 }
 
-/// The surface type of a face, for the summary.
+/// The census name of a STEP surface type.
+fn census_key(t: &str) -> &'static str {
+    match t {
+        "PLANE" => "plane",
+        "CYLINDRICAL_SURFACE" => "cylinder",
+        "CONICAL_SURFACE" => "cone",
+        "SPHERICAL_SURFACE" => "sphere",
+        "TOROIDAL_SURFACE" | "DEGENERATE_TOROIDAL_SURFACE" => "torus",
+        "B_SPLINE_SURFACE" | "RATIONAL_B_SPLINE_SURFACE" => "bspline",
+        "SURFACE_OF_REVOLUTION" => "revolution",
+        "SURFACE_OF_LINEAR_EXTRUSION" => "extrusion",
+        "OFFSET_SURFACE" => "offset",
+        _ => "other",
+    }
+}
+
+/// The surface type of a face, for the summary (a rectangular trim counts as
+/// its basis surface).
 fn surface_type(records: &HashMap<u64, Record>, face: u64) -> String {
-    let surf = records
+    let mut surf = records
         .get(&face)
         .and_then(|r| r.parts.first())
         .and_then(|(_, p)| p.get(2))
         .and_then(Param::reference)
         .and_then(|s| records.get(&s));
+    for _ in 0..8 {
+        match surf.and_then(|r| r.part("RECTANGULAR_TRIMMED_SURFACE")) {
+            Some(p) => surf = p.get(1).and_then(Param::reference).and_then(|b| records.get(&b)),
+            None => break,
+        }
+    }
     match surf {
-        Some(r) if r.is("B_SPLINE_SURFACE") || r.is("B_SPLINE_SURFACE_WITH_KNOTS") => {
+        Some(r)
+            if [
+                "B_SPLINE_SURFACE",
+                "B_SPLINE_SURFACE_WITH_KNOTS",
+                "BEZIER_SURFACE",
+                "UNIFORM_SURFACE",
+                "QUASI_UNIFORM_SURFACE",
+            ]
+            .iter()
+            .any(|n| r.is(n)) =>
+        {
             if r.is("RATIONAL_B_SPLINE_SURFACE") {
                 "RATIONAL_B_SPLINE_SURFACE".into()
             } else {
@@ -240,7 +282,7 @@ fn units(records: &HashMap<u64, Record>) -> (f64, String) {
 
 /// Every face to draw, with the instance it belongs to and its placement.
 fn placed_faces(records: &HashMap<u64, Record>) -> Vec<(u64, u64, DMat4)> {
-    let model = Model { records, angle_unit: 1.0 };
+    let model = Model { records, angle_unit: 1.0, centre: glam::DVec3::ZERO, size: 1.0 };
     // representation links: child → parent with a transform, and same-frame pairs
     let mut children: HashMap<u64, Vec<(u64, DMat4)>> = HashMap::new();
     let mut same: HashMap<u64, Vec<u64>> = HashMap::new();
@@ -281,10 +323,11 @@ fn placed_faces(records: &HashMap<u64, Record>) -> Vec<(u64, u64, DMat4)> {
     // same-frame groups whose members are never placed as a child are roots
     let group = |start: u64| -> Vec<u64> {
         let mut seen = vec![start];
+        let mut set: HashSet<u64> = HashSet::from([start]);
         let mut k = 0;
         while k < seen.len() {
             for n in same.get(&seen[k]).into_iter().flatten() {
-                if !seen.contains(n) {
+                if set.insert(*n) {
                     seen.push(*n);
                 }
             }
@@ -303,7 +346,8 @@ fn placed_faces(records: &HashMap<u64, Record>) -> Vec<(u64, u64, DMat4)> {
         if g.iter().any(|x| is_child.contains(x)) {
             continue;
         }
-        walk(&model, &g, DMat4::IDENTITY, &children, &group, 0, &mut out);
+        let mut walker = Walker { m: &model, children: &children, group_of: &group, path: Vec::new(), calls: 0 };
+        walker.walk(&g, DMat4::IDENTITY, &mut out);
     }
     if out.is_empty() {
         // no representation structure: every face once, as placed
@@ -316,79 +360,87 @@ fn placed_faces(records: &HashMap<u64, Record>) -> Vec<(u64, u64, DMat4)> {
     out
 }
 
-fn walk(
-    m: &Model,
-    group: &[u64],
-    at: DMat4,
-    children: &HashMap<u64, Vec<(u64, DMat4)>>,
-    group_of: &dyn Fn(u64) -> Vec<u64>,
-    depth: usize,
-    out: &mut Vec<(u64, u64, DMat4)>,
-) {
-    if depth > MAX_ASSEMBLY_DEPTH || out.len() >= MAX_FACE_INSTANCES {
-        return;
-    }
-    for &rep in group {
-        let Some(items) = m.records.get(&rep).and_then(|r| r.parts[0].1.get(1)).and_then(Param::list) else {
-            continue;
-        };
-        for item in items.iter().filter_map(Param::reference) {
-            items_faces(m, item, rep, at, children, group_of, depth, out);
-        }
-        for (child, t) in children.get(&rep).into_iter().flatten() {
-            walk(m, &group_of(*child), at * *t, children, group_of, depth + 1, out);
-        }
-    }
+/// Most representations visited in one assembly walk (a file whose links
+/// fan out into the same parts again and again stops here).
+const MAX_WALK_CALLS: usize = 1 << 20;
+
+struct Walker<'a, 'b> {
+    m: &'a Model<'a>,
+    children: &'b HashMap<u64, Vec<(u64, DMat4)>>,
+    group_of: &'b dyn Fn(u64) -> Vec<u64>,
+    /// Representations on the way down (a link back to one is a cycle).
+    path: Vec<u64>,
+    calls: usize,
 }
 
-/// The faces of a representation item (solid, shell, surface model, mapped item).
-#[allow(clippy::too_many_arguments)]
-fn items_faces(
-    m: &Model,
-    item: u64,
-    rep: u64,
-    at: DMat4,
-    children: &HashMap<u64, Vec<(u64, DMat4)>>,
-    group_of: &dyn Fn(u64) -> Vec<u64>,
-    depth: usize,
-    out: &mut Vec<(u64, u64, DMat4)>,
-) {
-    let Some(r) = m.records.get(&item) else { return };
-    let name = r.parts[0].0.as_str();
-    let p = &r.parts[0].1;
-    let refs = |k: usize| -> Vec<u64> {
-        match p.get(k) {
-            Some(Param::Ref(x)) => vec![*x],
-            Some(Param::List(l)) => l.iter().filter_map(Param::reference).collect(),
-            _ => vec![],
+impl Walker<'_, '_> {
+    fn walk(&mut self, group: &[u64], at: DMat4, out: &mut Vec<(u64, u64, DMat4)>) {
+        self.calls += 1;
+        if self.path.len() > MAX_ASSEMBLY_DEPTH
+            || self.calls > MAX_WALK_CALLS
+            || out.len() >= MAX_FACE_INSTANCES
+            || group.iter().any(|g| self.path.contains(g))
+        {
+            return;
         }
-    };
-    match name {
-        "MANIFOLD_SOLID_BREP" | "FACETED_BREP" => shells(m, &refs(1), rep, at, out),
-        "BREP_WITH_VOIDS" => {
-            shells(m, &refs(1), rep, at, out);
-            shells(m, &refs(2), rep, at, out);
-        }
-        "SHELL_BASED_SURFACE_MODEL" | "FACE_BASED_SURFACE_MODEL" => shells(m, &refs(1), rep, at, out),
-        "OPEN_SHELL" | "CLOSED_SHELL" | "CONNECTED_FACE_SET" => shells(m, &[item], rep, at, out),
-        "ADVANCED_FACE" | "FACE_SURFACE" => out.push((item, rep, at)),
-        "MAPPED_ITEM" => {
-            // MAPPED_ITEM(name, REPRESENTATION_MAP(origin, representation), target)
-            let Some(map) = p.get(1).and_then(Param::reference).and_then(|x| m.records.get(&x)) else { return };
-            let Some(mp) = map.part("REPRESENTATION_MAP") else { return };
-            let (Some(origin), Some(mapped), Some(target)) = (
-                mp.first().and_then(Param::reference),
-                mp.get(1).and_then(Param::reference),
-                p.get(2).and_then(Param::reference),
-            ) else {
-                return;
+        let depth = self.path.len();
+        self.path.extend_from_slice(group);
+        for &rep in group {
+            let Some(items) = self.m.records.get(&rep).and_then(|r| r.parts[0].1.get(1)).and_then(Param::list) else {
+                continue;
             };
-            if let (Ok(a), Ok(b)) = (m.frame(origin), m.frame(target)) {
-                let t = b.matrix() * a.matrix().inverse();
-                walk(m, &group_of(mapped), at * t, children, group_of, depth + 1, out);
+            for item in items.iter().filter_map(Param::reference) {
+                self.items_faces(item, rep, at, out);
+            }
+            for (child, t) in self.children.get(&rep).into_iter().flatten() {
+                let g = (self.group_of)(*child);
+                self.walk(&g, at * *t, out);
             }
         }
-        _ => {}
+        self.path.truncate(depth);
+    }
+
+    /// The faces of a representation item (solid, shell, surface model, mapped item).
+    fn items_faces(&mut self, item: u64, rep: u64, at: DMat4, out: &mut Vec<(u64, u64, DMat4)>) {
+        let m = self.m;
+        let Some(r) = m.records.get(&item) else { return };
+        let name = r.parts[0].0.as_str();
+        let p = &r.parts[0].1;
+        let refs = |k: usize| -> Vec<u64> {
+            match p.get(k) {
+                Some(Param::Ref(x)) => vec![*x],
+                Some(Param::List(l)) => l.iter().filter_map(Param::reference).collect(),
+                _ => vec![],
+            }
+        };
+        match name {
+            "MANIFOLD_SOLID_BREP" | "FACETED_BREP" => shells(m, &refs(1), rep, at, out),
+            "BREP_WITH_VOIDS" => {
+                shells(m, &refs(1), rep, at, out);
+                shells(m, &refs(2), rep, at, out);
+            }
+            "SHELL_BASED_SURFACE_MODEL" | "FACE_BASED_SURFACE_MODEL" => shells(m, &refs(1), rep, at, out),
+            "OPEN_SHELL" | "CLOSED_SHELL" | "CONNECTED_FACE_SET" => shells(m, &[item], rep, at, out),
+            "ADVANCED_FACE" | "FACE_SURFACE" => out.push((item, rep, at)),
+            "MAPPED_ITEM" => {
+                // MAPPED_ITEM(name, REPRESENTATION_MAP(origin, representation), target)
+                let Some(map) = p.get(1).and_then(Param::reference).and_then(|x| m.records.get(&x)) else { return };
+                let Some(mp) = map.part("REPRESENTATION_MAP") else { return };
+                let (Some(origin), Some(mapped), Some(target)) = (
+                    mp.first().and_then(Param::reference),
+                    mp.get(1).and_then(Param::reference),
+                    p.get(2).and_then(Param::reference),
+                ) else {
+                    return;
+                };
+                if let (Ok(a), Ok(b)) = (m.frame(origin), m.frame(target)) {
+                    let t = b.matrix() * a.matrix().inverse();
+                    let g = (self.group_of)(mapped);
+                    self.walk(&g, at * t, out);
+                }
+            }
+            _ => {}
+        }
     }
 }
 

@@ -217,7 +217,7 @@ fn faces_that_cannot_be_read_are_named_and_the_rest_kept() {
     let m = read(&data);
     assert_eq!(m.surfaces.len(), 1);
     let w = m.warnings.join("\n");
-    assert!(w.contains("#61") && w.contains("SURFACE_OF_LINEAR_EXTRUSION"), "{w}");
+    assert!(w.contains("#61") && w.contains("a line extruded along itself"), "{w}");
     assert!(w.contains("#62") && w.contains("#999"), "{w}");
 }
 
@@ -314,4 +314,114 @@ fn the_spline_cage_reads_its_pcurves() {
             }
         }
     }
+}
+
+fn kept_area(m: &StepModel) -> f64 {
+    m.surfaces.iter().map(|s| hitex_core::nurbs::measure::trimmed_measure(&s.surface, s.range, &s.trim).area).sum()
+}
+
+#[test]
+fn swept_surfaces_convert_exactly_and_trim_like_the_cylinder() {
+    // the cylinder of radius 2 as an extruded circle and as a revolved line
+    let extruded = CYLINDER.replace(
+        "#5=CYLINDRICAL_SURFACE('',#4,2.);",
+        "#5=SURFACE_OF_LINEAR_EXTRUSION('',#8,#30);\n#30=VECTOR('',#2,1.);",
+    );
+    let revolved = CYLINDER.replace(
+        "#5=CYLINDRICAL_SURFACE('',#4,2.);",
+        "#5=SURFACE_OF_REVOLUTION('',#31,#33);\n#30=CARTESIAN_POINT('',(2.,0.,0.));\n#31=LINE('',#30,#32);\n\
+         #32=VECTOR('',#2,1.);\n#33=AXIS1_PLACEMENT('',#1,#2);",
+    );
+    for (name, text) in [("extrusion", extruded), ("revolution", revolved)] {
+        let m = read(&text);
+        assert_eq!(m.surfaces.len(), 1, "{name}: {:?}", m.warnings);
+        assert_eq!(m.census.get(name), Some(&1));
+        let p = &m.surfaces[0];
+        let ((u0, u1), (v0, v1)) = p.range;
+        for i in 0..=16 {
+            for j in 0..=16 {
+                let (u, v) = (u0 + (u1 - u0) * i as f64 / 16.0, v0 + (v1 - v0) * j as f64 / 16.0);
+                let s = p.surface.point(u, v);
+                assert!(((s[0] * s[0] + s[1] * s[1]).sqrt() - 2.0).abs() < 1e-12, "{name}: off the cylinder");
+            }
+        }
+        // the side between the circles, exactly: 2π·2·3
+        let a = kept_area(&m);
+        let want = std::f64::consts::TAU * 2.0 * 3.0;
+        assert!((a - want).abs() / want < 1e-3, "{name}: area {a} vs {want}");
+    }
+}
+
+#[test]
+fn trimmed_areas_match_their_formulas() {
+    // plate 40 × 30 less a hole of radius 5 (the chord tolerance 1e-3 shrinks the hole by < 1e-3)
+    let m = read(PLATE);
+    let want = 1200.0 - std::f64::consts::PI * 25.0;
+    assert!((kept_area(&m) - want).abs() < 0.04, "{} vs {want}", kept_area(&m));
+    // the cylinder's side
+    let want = std::f64::consts::TAU * 6.0;
+    assert!((kept_area(&read(CYLINDER)) - want).abs() / want < 1e-3);
+    // a spherical cap of radius 3 above z = 1.5 (bounded by one circle, closed at the pole): 2πRh
+    let cap = "\
+#1=CARTESIAN_POINT('',(0.,0.,0.));
+#2=DIRECTION('',(0.,0.,1.));
+#3=DIRECTION('',(1.,0.,0.));
+#4=AXIS2_PLACEMENT_3D('',#1,#2,#3);
+#5=SPHERICAL_SURFACE('',#4,3.);
+#6=CARTESIAN_POINT('',(0.,0.,1.5));
+#7=AXIS2_PLACEMENT_3D('',#6,#2,#3);
+#8=CIRCLE('',#7,2.598076211353316);
+#10=CARTESIAN_POINT('',(2.598076211353316,0.,1.5));
+#12=VERTEX_POINT('',#10);
+#14=EDGE_CURVE('',#12,#12,#8,.T.);
+#16=ORIENTED_EDGE('',*,*,#14,.T.);
+#18=EDGE_LOOP('',(#16));
+#20=FACE_OUTER_BOUND('',#18,.T.);
+#22=ADVANCED_FACE('',(#20),#5,.T.);
+#23=OPEN_SHELL('',(#22));
+";
+    let m = read(cap);
+    assert_eq!(m.census.get("sphere"), Some(&1));
+    let want = std::f64::consts::TAU * 3.0 * 1.5;
+    let a = kept_area(&m);
+    assert!((a - want).abs() / want < 1e-3, "cap {a} vs {want}");
+    // the other way round the loop keeps the rest of the sphere: 2πR(R + 1.5)
+    let m = read(&cap.replace("#14,.T.);\n#18", "#14,.F.);\n#18"));
+    let want = std::f64::consts::TAU * 3.0 * 4.5;
+    let a = kept_area(&m);
+    assert!((a - want).abs() / want < 1e-3, "rest {a} vs {want}");
+}
+
+#[test]
+fn offset_surfaces_are_refused_by_name() {
+    let m = read(&format!(
+        "{PLATE}#60=OFFSET_SURFACE('',#5,2.5,.F.);\n#61=ADVANCED_FACE('',(#39),#60,.T.);\n#63=CLOSED_SHELL('',(#49,#61));\n"
+    ));
+    assert_eq!(m.surfaces.len(), 1);
+    assert_eq!(m.census.get("offset"), Some(&1));
+    let w = m.warnings.join("\n");
+    assert!(w.contains("#61") && w.contains("OFFSET_SURFACE (distance 2.5 from #5)"), "{w}");
+}
+
+#[test]
+fn hostile_structures_are_refused_or_skipped_quickly() {
+    // an empty polygon loop, limits of 10^15 turns, a placement cycle through mapped items
+    let data = format!(
+        "{PLATE}#60=POLY_LOOP('',());\n#61=FACE_BOUND('',#60,.T.);\n#62=ADVANCED_FACE('',(#39,#61),#5,.T.);\n\
+         #70=CYLINDRICAL_SURFACE('',#4,2.);\n#71=RECTANGULAR_TRIMMED_SURFACE('',#70,0.,1.E15,0.,1.,.T.,.T.);\n\
+         #72=ADVANCED_FACE('',(),#71,.T.);\n#73=CLOSED_SHELL('',(#49,#62,#72));\n\
+         #80=SHAPE_REPRESENTATION('',(#81,#82,#73),#99);\n#81=MAPPED_ITEM('',#83,#4);\n#82=MAPPED_ITEM('',#83,#4);\n\
+         #83=REPRESENTATION_MAP(#4,#80);\n#99=GEOMETRIC_REPRESENTATION_CONTEXT(3);\n"
+    );
+    let t = std::time::Instant::now();
+    let m = read(&data);
+    assert!(t.elapsed().as_secs() < 20, "took {:?}", t.elapsed());
+    let w = m.warnings.join("\n");
+    assert!(w.contains("#62") && w.contains("POLY_LOOP #60 has no points"), "{w}");
+    assert!(w.contains("#72") && w.contains("more than a turn"), "{w}");
+    assert!(m.surfaces.iter().all(|s| s.directory_entry == 49) && !m.surfaces.is_empty());
+    // directions of huge ratios normalise instead of overflowing
+    let m = read(&PLATE.replace("#2=DIRECTION('',(0.,0.,1.));", "#2=DIRECTION('',(0.,0.,1.E300));"));
+    let n = m.surfaces[0].surface.normal(0.0, 0.0);
+    assert!((n[2].abs() - 1.0).abs() < 1e-12, "{n:?}");
 }
