@@ -4,16 +4,18 @@
 //! The domain is cut into a grid of cells. A cell that no trim edge crosses
 //! is wholly kept or wholly cut (decided at its centre by the even–odd rule);
 //! a kept cell is integrated by 3×3 Gauss–Legendre on |Su × Sv|. A cell that
-//! a trim edge crosses is split in four, down to a depth where each of its
-//! 4×4 Gauss points is tested on its own. The error is then confined to the
-//! smallest cells along the trims: about their area times the integrand.
+//! a trim edge crosses is split in four, down to a small depth; there the
+//! kept share of the cell is computed exactly in parameter space (each loop
+//! clipped to the cell, signed by its nesting) and multiplied by the mean of
+//! |Su × Sv| over the cell (4×4 Gauss). The error is the variation of
+//! |Su × Sv| across those small cells: none on planes.
 
 use super::surface::NurbsSurface;
 
 /// Cells along each parameter before refinement.
 const GRID: usize = 24;
 /// Splits of a cell that a trim edge crosses.
-const DEPTH: usize = 6;
+const DEPTH: usize = 3;
 
 /// Area and bounds of the kept part of a surface.
 #[derive(Debug, Clone, Copy, PartialEq)]
