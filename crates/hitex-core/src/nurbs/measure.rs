@@ -351,6 +351,17 @@ pub fn nearest_face(faces: &[DistanceFace], p: [f64; 3]) -> Option<(f64, usize, 
 mod tests {
     use super::*;
 
+    /// The unit square with a hole of radius 0.25 at its centre (an `n`-gon).
+    fn holed_square(n: usize) -> Vec<Vec<[f64; 2]>> {
+        let hole: Vec<[f64; 2]> = (0..=n)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / n as f64;
+                [0.5 + 0.25 * a.cos(), 0.5 + 0.25 * a.sin()]
+            })
+            .collect();
+        vec![vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]], hole]
+    }
+
     fn plane(w: f64, h: f64) -> NurbsSurface {
         let pts = vec![[0.0, 0.0, 0.0, 1.0], [w, 0.0, 0.0, 1.0], [0.0, h, 0.0, 1.0], [w, h, 0.0, 1.0]];
         NurbsSurface::new(1, 1, 2, 2, vec![0.0, 0.0, 1.0, 1.0], vec![0.0, 0.0, 1.0, 1.0], pts).unwrap()
@@ -364,15 +375,7 @@ mod tests {
         let full = trimmed_measure(&s, r, &[]);
         assert!((full.area - 8.0).abs() < 1e-12, "{}", full.area);
         assert_eq!((full.min, full.max), ([0.0; 3], [4.0, 2.0, 0.0]));
-        let n = 4096;
-        let hole: Vec<[f64; 2]> = (0..=n)
-            .map(|i| {
-                let a = std::f64::consts::TAU * i as f64 / n as f64;
-                [0.5 + 0.25 * a.cos(), 0.5 + 0.25 * a.sin()]
-            })
-            .collect();
-        let outer = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]];
-        let m = trimmed_measure(&s, r, &[outer, hole]);
+        let m = trimmed_measure(&s, r, &holed_square(4096));
         let want = 8.0 - std::f64::consts::PI * 1.0 * 0.5;
         // the 4096-gon's own area is short of the ellipse's by 2e-6 relative
         assert!((m.area - want).abs() / want < 1e-5, "{} vs {want}", m.area);
@@ -401,15 +404,7 @@ mod tests {
     fn distances_to_a_holed_rectangle() {
         let s = plane(4.0, 2.0);
         let r = s.domain();
-        let n = 256;
-        let hole: Vec<[f64; 2]> = (0..=n)
-            .map(|i| {
-                let a = std::f64::consts::TAU * i as f64 / n as f64;
-                [0.5 + 0.25 * a.cos(), 0.5 + 0.25 * a.sin()]
-            })
-            .collect();
-        let outer = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]];
-        let loops = vec![outer, hole];
+        let loops = holed_square(256);
         let f = [DistanceFace::new(&s, r, &loops)];
         // above the kept part: the height
         let (d, i, _) = nearest_face(&f, [0.5, 0.2, 3.0]).unwrap();

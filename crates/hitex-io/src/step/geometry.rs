@@ -17,6 +17,15 @@ use std::collections::HashMap;
 use std::f64::consts::PI;
 use std::f64::consts::{FRAC_PI_2, TAU};
 
+/// The entity names a B-spline surface record may carry.
+const SPLINE_SURFACES: [&str; 5] =
+    ["B_SPLINE_SURFACE", "B_SPLINE_SURFACE_WITH_KNOTS", "BEZIER_SURFACE", "UNIFORM_SURFACE", "QUASI_UNIFORM_SURFACE"];
+
+/// Whether the record is a B-spline surface (simple or complex).
+pub(crate) fn is_spline_surface(r: &Record) -> bool {
+    SPLINE_SURFACES.iter().any(|n| r.is(n))
+}
+
 /// Entity lookups with messages that name the entity.
 pub(crate) struct Model<'a> {
     pub records: &'a HashMap<u64, Record>,
@@ -212,16 +221,7 @@ impl<'a> Model<'a> {
             return Err(format!("#{id}: surfaces nest too deeply"));
         }
         let r = self.record(id)?;
-        if [
-            "B_SPLINE_SURFACE",
-            "B_SPLINE_SURFACE_WITH_KNOTS",
-            "BEZIER_SURFACE",
-            "UNIFORM_SURFACE",
-            "QUASI_UNIFORM_SURFACE",
-        ]
-        .iter()
-        .any(|n| r.is(n))
-        {
+        if is_spline_surface(r) {
             return Ok(Surface::new(Frame::IDENTITY, Kind::Spline(self.spline_surface(id, r)?)));
         }
         let (name, p) = (r.parts[0].0.as_str(), r.parts[0].1.as_slice());

@@ -214,17 +214,7 @@ fn surface_type(records: &HashMap<u64, Record>, face: u64) -> String {
         }
     }
     match surf {
-        Some(r)
-            if [
-                "B_SPLINE_SURFACE",
-                "B_SPLINE_SURFACE_WITH_KNOTS",
-                "BEZIER_SURFACE",
-                "UNIFORM_SURFACE",
-                "QUASI_UNIFORM_SURFACE",
-            ]
-            .iter()
-            .any(|n| r.is(n)) =>
-        {
+        Some(r) if geometry::is_spline_surface(r) => {
             if r.is("RATIONAL_B_SPLINE_SURFACE") {
                 "RATIONAL_B_SPLINE_SURFACE".into()
             } else {

@@ -57,19 +57,7 @@ const PLATE: &str = "\
 
 /// Whether `p` is inside an odd number of loops (the renderer's rule).
 fn inside(loops: &[Vec<[f64; 2]>], p: [f64; 2]) -> bool {
-    let mut odd = false;
-    for l in loops {
-        for w in l.windows(2) {
-            let (a, b) = (w[0], w[1]);
-            if (a[1] > p[1]) != (b[1] > p[1]) {
-                let x = a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]);
-                if p[0] < x {
-                    odd = !odd;
-                }
-            }
-        }
-    }
-    odd
+    hitex_core::nurbs::measure::inside_loops(loops, p)
 }
 
 fn read(data: &str) -> StepModel {
