@@ -568,7 +568,11 @@ fn load(model: &str, chord: Option<f64>) -> Result<NurbsModel, CliError> {
 
 /// Prepares a model for rendering.
 pub fn prepare(model: &NurbsModel, density: u32) -> PreparedNurbs {
-    PreparedNurbs::trimmed(model.nurbs(), &model.ranges(), &model.trims(), density)
+    let mut p = PreparedNurbs::trimmed(model.nurbs(), &model.ranges(), &model.trims(), density);
+    if model.colors.iter().any(Option::is_some) {
+        p.set_colors(&model.colors);
+    }
+    p
 }
 
 /// Runs a `hitex nurbs` subcommand.

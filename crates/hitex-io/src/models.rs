@@ -31,6 +31,9 @@ pub struct NurbsModel {
     pub census: std::collections::BTreeMap<&'static str, usize>,
     /// The length unit where the file states one (STEP: "mm", "inch", …).
     pub units: Option<String>,
+    /// Each patch's colour (linear RGB) where the file gives one (STEP
+    /// styles); empty: none.
+    pub colors: Vec<Option<[f32; 3]>>,
 }
 
 impl NurbsModel {
@@ -58,6 +61,7 @@ fn from_iges(name: &str, m: IgesModel) -> NurbsModel {
         notes: vec![],
         census: Default::default(),
         units: None,
+        colors: vec![],
     }
 }
 
@@ -215,6 +219,7 @@ pub fn load_model_with(spec: &str, opts: &LoadOptions) -> Result<NurbsModel, IoE
                 notes: vec![],
                 census: Default::default(),
                 units: None,
+                colors: vec![],
             })
         }
         "surface" => {
@@ -228,6 +233,7 @@ pub fn load_model_with(spec: &str, opts: &LoadOptions) -> Result<NurbsModel, IoE
                 notes: vec![],
                 census: Default::default(),
                 units: None,
+                colors: vec![],
             })
         }
         path => {
@@ -244,6 +250,7 @@ pub fn load_model_with(spec: &str, opts: &LoadOptions) -> Result<NurbsModel, IoE
                         notes: vec![],
                         census: Default::default(),
                         units: None,
+                        colors: vec![],
                     })
                 }
                 Some("json") => {
@@ -256,6 +263,7 @@ pub fn load_model_with(spec: &str, opts: &LoadOptions) -> Result<NurbsModel, IoE
                         notes: vec![],
                         census: Default::default(),
                         units: None,
+                        colors: vec![],
                     })
                 }
                 Some("stp") | Some("step") | Some("p21") => {
@@ -301,6 +309,7 @@ pub fn load_model_with(spec: &str, opts: &LoadOptions) -> Result<NurbsModel, IoE
                         notes,
                         census: m.census,
                         units: Some(m.length_unit),
+                        colors: m.colors,
                     })
                 }
                 Some("igs") | Some("iges") => {

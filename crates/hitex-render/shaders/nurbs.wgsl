@@ -23,7 +23,7 @@ struct Frame {
 @group(0) @binding(1) var knots_u: texture_2d<f32>;
 @group(0) @binding(2) var knots_v: texture_2d<f32>;
 @group(0) @binding(3) var control: texture_2d<f32>;
-// trimming edges: row per patch, texel 0 = (count, 0, 0, 0), then (u0, v0, u1, v1)
+// trimming edges: row per patch, texel 0 = (count, albedo r, g, b; r < 0: default), then (u0, v0, u1, v1)
 @group(0) @binding(4) var trims: texture_2d<f32>;
 
 struct VsIn {
@@ -665,7 +665,10 @@ fn fs_main(in: VsOut) -> FsOut {
         let r = frame.model.w;
         c = highlight(e.s, n, light, frame.model.xyz + light * (2.0 * r), 2.0 * r / f32(max(frame.params.z, 1u)));
     } else {
-        let albedo = vec3<f32>(0.72, 0.75, 0.80);
+        // the patch's own colour (texel 0 of its trim row; r < 0: the default grey)
+        let head = textureLoad(trims, vec2<i32>(0, pid), 0);
+        var albedo = vec3<f32>(0.72, 0.75, 0.80);
+        if head.y >= 0.0 { albedo = head.yzw; }
         let ndl = max(dot(n, light), 0.0);
         let h = normalize(light + view);
         var spec = 0.0;

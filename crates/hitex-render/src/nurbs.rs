@@ -178,9 +178,12 @@ pub struct PackedNurbs {
     pub patches: u32,
     /// Texels per trim row.
     pub trim_width: u32,
-    /// Trimming edges in parameter space: texel 0 = (edge count, 0, 0, 0),
-    /// then `(u0, v0, u1, v1)` per edge of every loop (even–odd rule).
+    /// Trimming edges in parameter space: texel 0 = (edge count, r, g, b)
+    /// with the patch's albedo in linear RGB (r < 0: the default), then
+    /// `(u0, v0, u1, v1)` per edge of every loop (even–odd rule).
     pub trims: Vec<[f32; 4]>,
+    /// Each patch's albedo (linear RGB) where the model gives one.
+    pub colors: Vec<Option<[f32; 3]>>,
 }
 
 /// Trimming loops of one patch (closed polylines in its parameter space).
@@ -223,7 +226,25 @@ impl PackedNurbs {
             control,
             patches: rows as u32,
             trim_width: 1,
-            trims: vec![[0.0; 4]; rows.max(1)],
+            trims: vec![[0.0, -1.0, -1.0, -1.0]; rows.max(1)],
+            colors: vec![None; rows],
+        }
+    }
+
+    /// Gives patches their albedo (linear RGB; `None`: the default grey),
+    /// used by the shaded mode.
+    pub fn set_colors(&mut self, colors: &[Option<[f32; 3]>]) {
+        self.colors = (0..self.patches as usize).map(|k| colors.get(k).copied().flatten()).collect();
+        self.write_colors();
+    }
+
+    fn write_colors(&mut self) {
+        let w = self.trim_width as usize;
+        for (k, c) in self.colors.iter().enumerate() {
+            if let Some(t) = self.trims.get_mut(k * w) {
+                let [r, g, b] = c.unwrap_or([-1.0; 3]);
+                *t = [t[0], r, g, b];
+            }
         }
     }
 
@@ -256,6 +277,7 @@ impl PackedNurbs {
         }
         self.trim_width = width as u32;
         self.trims = t;
+        self.write_colors();
     }
 }
 
@@ -710,9 +732,11 @@ impl PreparedNurbs {
         if count > 0 {
             // trims stay: elevation keeps the parameterisation
             let (width, trims) = (self.packed.trim_width, std::mem::take(&mut self.packed.trims));
+            let colors = std::mem::take(&mut self.packed.colors);
             self.packed = PackedNurbs::new(&self.surfaces);
             self.packed.trim_width = width;
             self.packed.trims = trims;
+            self.packed.colors = colors;
             self.id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
         count
@@ -769,6 +793,12 @@ impl PreparedNurbs {
     /// (taken at cell centres) and a hair of the model's size.
     pub fn early_depth_margin(&self) -> f32 {
         1.5 * self.tess_deviation + 1e-5 * self.bounds.1
+    }
+
+    /// Gives patches their albedo for the shaded mode (see [`PackedNurbs::set_colors`]).
+    pub fn set_colors(&mut self, colors: &[Option<[f32; 3]>]) {
+        self.packed.set_colors(colors);
+        self.id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     }
 
     /// Trims patches by loops in their parameter space (see [`PackedNurbs::set_trims`]).

@@ -212,8 +212,15 @@ fn step_parts_render_alike_on_both_backends() {
     for (name, size) in [("face_recognition_sample_part.stp", (160, 120)), ("as1-oc-214.stp", (200, 130))] {
         let path = format!("{}/../hitex-io/data/cad/{name}", env!("CARGO_MANIFEST_DIR"));
         let m = hitex_io::models::load_model(&path).unwrap();
-        let p = PreparedNurbs::trimmed(m.nurbs(), &m.ranges(), &m.trims(), 6);
+        let mut p = PreparedNurbs::trimmed(m.nurbs(), &m.ranges(), &m.trims(), 6);
+        p.set_colors(&m.colors);
         let cpu = CpuRenderer::new().render_nurbs(&p, &p.camera, size.0, size.1).unwrap();
+        if name.starts_with("as1") {
+            // the file's colours: blue nuts, a yellow-green plate
+            let blue = cpu.rgba.chunks_exact(4).filter(|c| c[2] as i32 > c[0] as i32 + 100 && c[2] > c[1]).count();
+            let yellow = cpu.rgba.chunks_exact(4).filter(|c| c[0] > 120 && c[1] > 150 && c[2] < 60).count();
+            assert!(blue > 20 && yellow > 500, "{blue} blue, {yellow} yellow pixels");
+        }
         let e = hitex_core::texture::linear_to_srgb_u8;
         let bg = [e(p.background.x), e(p.background.y), e(p.background.z)];
         let drawn = cpu.rgba.chunks_exact(4).filter(|px| px[..3] != bg).count();

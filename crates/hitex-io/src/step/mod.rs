@@ -15,6 +15,7 @@
 //! place. Faces that cannot be read yet are skipped with a warning naming
 //! the face and the reason; the rest of the model is kept.
 
+mod colors;
 mod faces;
 mod geometry;
 pub mod part21;
@@ -84,6 +85,9 @@ pub struct StepModel {
     pub census: BTreeMap<&'static str, usize>,
     /// Part instances placed (1 for a single part).
     pub instances: usize,
+    /// Each surface's colour (linear RGB) from the file's styles
+    /// (`STYLED_ITEM` on the face, its shell or its solid), where it has one.
+    pub colors: Vec<Option<[f32; 3]>>,
 }
 
 /// Reads a STEP file.
@@ -132,6 +136,7 @@ pub fn parse_step(bytes: &[u8], name: &str, opts: &StepOptions) -> Result<StepMo
         instances.iter().map(|(_, rep, m)| (*rep, m.to_cols_array().map(f64::to_bits))).collect();
     out.instances = placed.len().max(1);
 
+    let face_colors = colors::face_colors(records);
     // each face once, then placed per instance
     let mut built: HashMap<u64, Option<IgesSurface>> = HashMap::new();
     let mut skipped: BTreeMap<String, Vec<u64>> = BTreeMap::new();
@@ -161,6 +166,7 @@ pub fn parse_step(bytes: &[u8], name: &str, opts: &StepOptions) -> Result<StepMo
                 }
             }
             out.surfaces.push(p);
+            out.colors.push(face_colors.get(face).copied());
         }
     }
     for (why, faces) in skipped {

@@ -283,6 +283,15 @@ fn the_assembly_places_its_parts() {
             (s.directory_entry, (c[0] * 1e3).round() as i64, (c[1] * 1e3).round() as i64, (c[2] * 1e3).round() as i64);
         assert!(seen.insert(key, ()).is_none(), "face #{} placed twice at {c:?}", s.directory_entry);
     }
+    // colours from the styles of the solids: 4 named or RGB colours over 18 instances
+    assert_eq!(m.colors.len(), m.surfaces.len());
+    assert!(m.colors.iter().all(Option::is_some));
+    let distinct: std::collections::HashSet<[u32; 3]> =
+        m.colors.iter().flatten().map(|c| c.map(f32::to_bits)).collect();
+    assert_eq!(distinct.len(), 5, "{distinct:?}");
+    let s = |x: f32| hitex_core::texture::srgb_to_linear(x);
+    assert!(m.colors.iter().flatten().any(|c| *c == [s(0.8), s(1.0), s(0.0)]));
+    assert!(m.colors.iter().flatten().any(|c| *c == [0.0, 0.0, 1.0]));
     // every part is a closed solid, its B-spline faces trimmed through their pcurves
     closed_and_watertight(&m, 2.0 * m.chord_tolerance);
 }

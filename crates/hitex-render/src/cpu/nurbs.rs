@@ -150,6 +150,17 @@ fn sums<const A: usize, const B: usize>(
 
 /// Whether (u, v) is cut away by the patch's trimming loops (even–odd rule
 /// over all edges; untrimmed patches keep everything).
+/// The shaded mode's default albedo (linear RGB).
+pub const DEFAULT_ALBEDO: [f32; 3] = [0.72, 0.75, 0.80];
+
+/// A patch's albedo: its colour where the model gives one, else the default.
+pub fn albedo(t: &PackedNurbs, patch: usize) -> Vec3 {
+    match t.trims.get(patch * t.trim_width as usize) {
+        Some(h) if h[1] >= 0.0 => Vec3::new(h[1], h[2], h[3]),
+        _ => Vec3::from_array(DEFAULT_ALBEDO),
+    }
+}
+
 pub fn trimmed_away(t: &PackedNurbs, patch: usize, u: f32, v: f32) -> bool {
     let w = t.trim_width as usize;
     let n = t.trims[patch * w][0] as usize;
@@ -454,7 +465,7 @@ impl<'a> NurbsProgram<'a> {
                 raw(highlight(e.s, n, light, c + light * (2.0 * r), 2.0 * r / f.params[2].max(1) as f32))
             }
             _ => {
-                let albedo = Vec3::new(0.72, 0.75, 0.80);
+                let albedo = albedo(self.packed, patch);
                 let ndl = n.dot(light).max(0.0);
                 let h = (light + view).normalize_or_zero();
                 let spec = if ndl > 0.0 { 0.35 * pow48(n.dot(h).max(0.0)) } else { 0.0 };
@@ -553,7 +564,7 @@ impl NurbsProgram<'_> {
         match mode {
             SHADED => {
                 // Blinn–Phong, the same steps as `lane`
-                let albedo = Vec3::new(0.72, 0.75, 0.80);
+                let albedo = albedo(t, patch);
                 let amb = f.ranges[2];
                 let enc = hitex_core::texture::srgb_encoder();
                 let e = |x: f32| enc.encode(x);
