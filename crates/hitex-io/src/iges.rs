@@ -56,6 +56,8 @@ struct DirEntry {
     entity: i64,
     param_ptr: i64,
     param_lines: i64,
+    /// Directory pointer of the entity's transformation matrix (124), 0: none.
+    transform: i64,
     line: usize,
 }
 
@@ -175,6 +177,7 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
             entity,
             param_ptr: field(a, 1).unwrap_or(0),
             param_lines: field(b, 3).unwrap_or(0),
+            transform: field(a, 6).unwrap_or(0),
             line: ln,
         });
         let seq_a: Option<i64> = a.get(73..80).and_then(|s| s.trim().parse().ok());
@@ -291,11 +294,19 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
         }
         parsed.push((d.entity, fields, loc));
     }
+    let transforms: Vec<i64> = dirs.iter().map(|d| d.transform).collect();
+    let matrix_of = |k: usize| transform_of(k, &transforms, &parsed);
     let mut surface_of: std::collections::HashMap<usize, usize> = std::collections::HashMap::new();
     for (k, (entity, fields, loc)) in parsed.iter().enumerate() {
         if *entity == 128 {
             let f: Vec<&str> = fields[1..].iter().map(String::as_str).collect();
-            let s = parse_128(&f).map_err(|m| err(loc.clone(), format!("entity 128: {m}")))?;
+            let mut s = parse_128(&f).map_err(|m| err(loc.clone(), format!("entity 128: {m}")))?;
+            // its transformation matrix (124), applied to the control points (exact)
+            match matrix_of(k) {
+                Ok(Some(m)) => apply_124(&mut s.0, &m),
+                Ok(None) => {}
+                Err(m) => return Err(err(loc.clone(), format!("entity 128: {m}"))),
+            }
             surface_of.insert(k, model.surfaces.len());
             model.surfaces.push(IgesSurface { surface: s.0, range: s.1, directory_entry: k + 1, trim: Vec::new() });
         }
@@ -312,6 +323,12 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
                     Ok((base, loops)) => {
                         consumed.insert(base);
                         let mut s = model.surfaces[base].clone();
+                        // the trimmed surface's own matrix applies after its base surface's
+                        match matrix_of(k) {
+                            Ok(Some(m)) => apply_124(&mut s.surface, &m),
+                            Ok(None) => {}
+                            Err(m) => return Err(err(loc.clone(), format!("entity 144: {m}"))),
+                        }
                         s.trim = loops;
                         s.directory_entry = k + 1;
                         trimmed.push(s);
@@ -319,7 +336,7 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
                     Err(m) => model.warnings.push(format!("{loc}: entity 144 not trimmed: {m}")),
                 }
             }
-            142 | 126 | 102 | 110 => {}
+            142 | 126 | 102 | 110 | 124 => {}
             other => *skipped.entry(other).or_default() += 1,
         }
     }
@@ -403,6 +420,64 @@ fn trimmed_surface(
         loops.push(curve_on_surface(entity_at(get(4 + i)?, parsed.len())?, parsed)?);
     }
     Ok((base, loops))
+}
+
+/// A 124 transformation: rows `[R11 R12 R13 T1]`, `[R21 …]`, `[R31 …]`.
+type Matrix34 = [[f64; 4]; 3];
+
+/// The matrix that places entity `k` (the composition of its 124 and the
+/// 124s that one refers to in turn), or `None` without one.
+fn transform_of(k: usize, transforms: &[i64], parsed: &Parsed) -> Result<Option<Matrix34>, String> {
+    let mut out: Option<Matrix34> = None;
+    let mut ptr = transforms.get(k).copied().unwrap_or(0);
+    for _ in 0..16 {
+        if ptr == 0 {
+            return Ok(out);
+        }
+        let j = entity_at(&ptr.to_string(), parsed.len())?;
+        let (ty, fields, _) = &parsed[j];
+        if *ty != 124 {
+            return Err(format!("its transformation pointer {ptr} names entity {ty}, not a matrix (124)"));
+        }
+        let mut m = [[0.0; 4]; 3];
+        for r in 0..3 {
+            for c in 0..4 {
+                m[r][c] =
+                    fields.get(1 + 4 * r + c).and_then(|f| num(f)).filter(|x| x.is_finite()).ok_or_else(|| {
+                        format!("matrix (124) at entry {}: field {} is not a number", j + 1, 2 + 4 * r + c)
+                    })?;
+            }
+        }
+        // an outer matrix applies after the inner one
+        out = Some(match out {
+            None => m,
+            Some(inner) => compose(&m, &inner),
+        });
+        ptr = transforms.get(j).copied().unwrap_or(0);
+    }
+    Err("transformation matrices refer to each other in a cycle".into())
+}
+
+/// `a ∘ b` of two affine 3×4 matrices.
+fn compose(a: &Matrix34, b: &Matrix34) -> Matrix34 {
+    let mut out = [[0.0; 4]; 3];
+    for r in 0..3 {
+        for c in 0..4 {
+            out[r][c] = (0..3).map(|k| a[r][k] * b[k][c]).sum::<f64>() + if c == 3 { a[r][3] } else { 0.0 };
+        }
+    }
+    out
+}
+
+/// Applies a 124 matrix to a surface's Cartesian control points (exact for
+/// rational B-splines; weights unchanged).
+fn apply_124(s: &mut NurbsSurface, m: &Matrix34) {
+    for p in &mut s.points {
+        let q = [p[0], p[1], p[2]];
+        for (r, row) in m.iter().enumerate() {
+            p[r] = row[0] * q[0] + row[1] * q[1] + row[2] * q[2] + row[3];
+        }
+    }
 }
 
 /// Entity 142: CRTN, SPTR, BPTR (curve in parameter space), CPTR, PREF.
@@ -670,17 +745,24 @@ mod tests {
 
     /// A well-formed file of several entities with consistent pointers.
     pub fn iges_file(entities: &[(i64, &str)]) -> String {
+        let with: Vec<(i64, &str, usize)> = entities.iter().map(|(t, r)| (*t, *r, 0)).collect();
+        iges_file_placed(&with)
+    }
+
+    /// Like [`iges_file`], each entity with the directory pointer of its
+    /// transformation matrix (0: none).
+    pub fn iges_file_placed(entities: &[(i64, &str, usize)]) -> String {
         let mut s = line("generated", 'S', 1);
         s += &line("1H,,1H;;", 'G', 1);
         let mut dir = String::new();
         let mut par = String::new();
         let mut pl = 1;
-        for (k, (ty, rec)) in entities.iter().enumerate() {
+        for (k, (ty, rec, tr)) in entities.iter().enumerate() {
             let lines: Vec<String> =
                 rec.as_bytes().chunks(64).map(|c| String::from_utf8_lossy(c).to_string()).collect();
             let de = 2 * k + 1;
             dir +=
-                &line(&format!("{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}", ty, pl, 0, 1, 0, 0, 0, 0, 0), 'D', de);
+                &line(&format!("{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}", ty, pl, 0, 1, 0, 0, tr, 0, 0), 'D', de);
             dir += &line(&format!("{:>8}{:>8}{:>8}{:>8}{:>8}", ty, 0, 0, lines.len(), 0), 'D', de + 1);
             for l in lines {
                 par += &format!("{l:<64}{de:>8}P{pl:>7}\n");
@@ -742,6 +824,29 @@ mod tests {
             std::fs::write(&path, holed_square()).unwrap();
         }
         assert_eq!(std::fs::read_to_string(&path).unwrap(), holed_square());
+    }
+
+    #[test]
+    fn transformation_matrices_place_surfaces() {
+        // a quarter turn about z, then (10, 0, 0); a second matrix above it moves by (0, 0, 5)
+        let turn = "124,0.,-1.,0.,10.,1.,0.,0.,0.,0.,0.,1.,0.;";
+        let lift = "124,1.,0.,0.,0.,0.,1.,0.,0.,0.,0.,1.,5.;";
+        let f = iges_file_placed(&[(124, lift, 0), (124, turn, 1), (128, BILINEAR, 3)]);
+        let m = parse_iges(&f, "placed.igs").unwrap();
+        assert_eq!(m.surfaces.len(), 1, "{:?}", m.warnings);
+        let s = &m.surfaces[0].surface;
+        // the bilinear patch's corner (1, 0, 0) → turned to (0, 1, 0) → (10, 1, 0) → lifted (10, 1, 5)
+        let p = s.point(1.0, 0.0);
+        assert!((p[0] - 10.0).abs() < 1e-12 && (p[1] - 1.0).abs() < 1e-12 && (p[2] - 5.0).abs() < 1e-12, "{p:?}");
+        assert!(!m.warnings.iter().any(|w| w.contains("124")), "{:?}", m.warnings);
+        // a pointer to something other than a matrix is an error naming it
+        let f = iges_file_placed(&[(110, "110,0.,0.,0.,1.,0.,0.;", 0), (128, BILINEAR, 1)]);
+        let e = parse_iges(&f, "bad.igs").unwrap_err().to_string();
+        assert!(e.contains("not a matrix (124)"), "{e}");
+        // matrices pointing at each other
+        let f = iges_file_placed(&[(124, lift, 3), (124, turn, 1), (128, BILINEAR, 3)]);
+        let e = parse_iges(&f, "cycle.igs").unwrap_err().to_string();
+        assert!(e.contains("cycle"), "{e}");
     }
 
     #[test]
