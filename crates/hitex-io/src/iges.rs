@@ -440,12 +440,11 @@ fn transform_of(k: usize, transforms: &[i64], parsed: &Parsed) -> Result<Option<
             return Err(format!("its transformation pointer {ptr} names entity {ty}, not a matrix (124)"));
         }
         let mut m = [[0.0; 4]; 3];
-        for r in 0..3 {
-            for c in 0..4 {
-                m[r][c] =
-                    fields.get(1 + 4 * r + c).and_then(|f| num(f)).filter(|x| x.is_finite()).ok_or_else(|| {
-                        format!("matrix (124) at entry {}: field {} is not a number", j + 1, 2 + 4 * r + c)
-                    })?;
+        for (r, row) in m.iter_mut().enumerate() {
+            for (c, x) in row.iter_mut().enumerate() {
+                *x = fields.get(1 + 4 * r + c).and_then(|f| num(f)).filter(|x| x.is_finite()).ok_or_else(|| {
+                    format!("matrix (124) at entry {}: field {} is not a number", j + 1, 2 + 4 * r + c)
+                })?;
             }
         }
         // an outer matrix applies after the inner one
@@ -461,9 +460,9 @@ fn transform_of(k: usize, transforms: &[i64], parsed: &Parsed) -> Result<Option<
 /// `a ∘ b` of two affine 3×4 matrices.
 fn compose(a: &Matrix34, b: &Matrix34) -> Matrix34 {
     let mut out = [[0.0; 4]; 3];
-    for r in 0..3 {
-        for c in 0..4 {
-            out[r][c] = (0..3).map(|k| a[r][k] * b[k][c]).sum::<f64>() + if c == 3 { a[r][3] } else { 0.0 };
+    for (r, row) in out.iter_mut().enumerate() {
+        for (c, x) in row.iter_mut().enumerate() {
+            *x = (0..3).map(|k| a[r][k] * b[k][c]).sum::<f64>() + if c == 3 { a[r][3] } else { 0.0 };
         }
     }
     out
