@@ -783,32 +783,40 @@ fn point_partials<S: pulp::Simd>(
 /// `None`). A lane is in span s when k[s] ≤ x < k[s+1], or at the domain's
 /// end when s is the last non-empty span: exactly `find_span`'s answer.
 #[allow(clippy::too_many_arguments)]
-fn span_groups(
-    ku: &[f32],
-    kv: &[f32],
-    nu: usize,
-    nv: usize,
-    u: &Lanes,
-    v: &Lanes,
-    lanes: u16,
-) -> Option<Vec<(usize, usize, u16)>> {
+fn span_groups(ku: &[f32], kv: &[f32], nu: usize, nv: usize, u: &Lanes, v: &Lanes, lanes: u16) -> Option<SpanGroups> {
     let (u1, v1) = (ku[nu], kv[nv]);
     let (u_end, v_end) = (find_span(nu - 1, 3, u1, ku), find_span(nv - 1, 3, v1, kv));
     let in_span = |x: f32, k: &[f32], s: usize, end_span: usize, end: f32| {
         (k[s] <= x && x < k[s + 1]) || (s == end_span && x >= end)
     };
-    let mut groups: Vec<(usize, usize, u16)> = Vec::with_capacity(4);
+    let mut groups = SpanGroups { groups: [(0, 0, 0); 4], len: 0 };
     for lane in (0..LANES).filter(|l| lanes & (1 << l) != 0) {
         let (x, y) = (u[lane], v[lane]);
-        match groups.iter().position(|g| in_span(x, ku, g.0, u_end, u1) && in_span(y, kv, g.1, v_end, v1)) {
-            Some(i) => groups[i].2 |= 1 << lane,
-            None if groups.len() < 4 => {
-                groups.push((find_span(nu - 1, 3, x, ku), find_span(nv - 1, 3, y, kv), 1 << lane))
+        let found = groups.groups[..groups.len]
+            .iter()
+            .position(|g| in_span(x, ku, g.0, u_end, u1) && in_span(y, kv, g.1, v_end, v1));
+        match found {
+            Some(i) => groups.groups[i].2 |= 1 << lane,
+            None if groups.len < 4 => {
+                groups.groups[groups.len] = (find_span(nu - 1, 3, x, ku), find_span(nv - 1, 3, y, kv), 1 << lane);
+                groups.len += 1;
             }
             None => return None,
         }
     }
-    (!groups.is_empty()).then_some(groups)
+    (groups.len > 0).then_some(groups)
+}
+
+/// At most four knot-span pairs of a block's lanes: `(su, sv, lanes)`.
+struct SpanGroups {
+    groups: [(usize, usize, u16); 4],
+    len: usize,
+}
+
+impl SpanGroups {
+    fn iter(&self) -> std::slice::Iter<'_, (usize, usize, u16)> {
+        self.groups[..self.len].iter()
+    }
 }
 
 /// Exact points and unit normals of 16 parameters on one bicubic patch.
@@ -1022,12 +1030,29 @@ impl pulp::WithSimd for BicubicOp<'_> {
 impl BlockShader<VARYINGS> for NurbsProgram<'_> {
     const WRITES_DEPTH: bool = true;
 
+    /// The patch and the knot spans of the triangle's first vertex: the
+    /// prepared kernels shade the lanes of one patch and one span pair at once.
+    #[inline(always)]
+    fn key(&self, v: &[f32; VARYINGS]) -> u32 {
+        let t = self.packed;
+        let patch = (v[5].round().max(0.0) as usize).min(t.patches.saturating_sub(1) as usize);
+        let (kw, cw) = (t.knot_width as usize, t.cp_width as usize);
+        let head = t.control[patch * cw];
+        let (p, q, nu, nv) = (head[0] as usize, head[1] as usize, head[2] as usize, head[3] as usize);
+        let ku = &t.knots_u[patch * kw + 1..patch * kw + 1 + t.knots_u[patch * kw] as usize];
+        let kv = &t.knots_v[patch * kw + 1..patch * kw + 1 + t.knots_v[patch * kw] as usize];
+        let su = find_span(nu - 1, p, v[3].max(ku[p]).min(ku[nu]), ku);
+        let sv = find_span(nv - 1, q, v[4].max(kv[q]).min(kv[nv]), kv);
+        ((patch as u32) << 16) ^ ((su as u32 & 0xff) << 8) ^ (sv as u32 & 0xff)
+    }
+
     #[inline(always)]
     fn shade_block(&self, b: &Block<VARYINGS>, rgba: &mut [[u8; 4]; LANES], depth: &mut Lanes) {
         *depth = [f32::NAN; LANES];
         if self.block_bicubic(b, rgba, depth).is_some() {
             return;
         }
+
         // any degree, any mode: lane by lane
         let overlay = self.frame.params[3] & 2 == 2;
         for quad in 0..4 {

@@ -964,6 +964,13 @@ impl MeshProgram<'_> {
 }
 
 impl BlockShader<4> for MeshProgram<'_> {
+    /// Objects (generic texture) apart from the ground: a block is shaded
+    /// by one of the two programs.
+    #[inline(always)]
+    fn key(&self, v: &[f32; 4]) -> u32 {
+        (v[2] > 0.5) as u32
+    }
+
     #[inline(always)]
     fn shade_block(&self, b: &Block<4>, rgba: &mut [[u8; 4]; LANES], _depth: &mut Lanes) {
         let first = (b.live.trailing_zeros() as usize).min(LANES - 1);
