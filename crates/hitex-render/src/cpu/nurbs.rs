@@ -497,10 +497,10 @@ impl NurbsProgram<'_> {
         }
         // one patch for every live lane
         let first = b.live.trailing_zeros() as usize;
-        let patch_of = |lane: usize| (b.v[5][lane].round().max(0.0) as usize).min(t.patches.saturating_sub(1) as usize);
-        let patch = patch_of(first);
+        let last = t.patches.saturating_sub(1) as usize;
+        let patch = (b.v[5][first].round().max(0.0) as usize).min(last);
         for lane in 0..LANES {
-            if b.live & (1 << lane) != 0 && patch_of(lane) != patch {
+            if b.live & (1 << lane) != 0 && (b.v[5][lane].round().max(0.0) as usize).min(last) != patch {
                 return None;
             }
         }
@@ -525,9 +525,18 @@ impl NurbsProgram<'_> {
         let light = Vec3::new(f.light[0], f.light[1], f.light[2]);
         let cam = Vec3::new(f.camera[0], f.camera[1], f.camera[2]);
         let mut o = BicubicOut::default();
-        for (k, &(su, sv, lanes)) in groups.iter().enumerate() {
-            if k == 0 {
+        // past four span pairs, a lane alone in its pair costs less on its
+        // own (the per-lane program, below) than a kernel run for it
+        let mut solo = 0u16;
+        let mut filled = false;
+        for &(su, sv, lanes) in groups.iter() {
+            if groups.len > 4 && lanes.count_ones() == 1 {
+                solo |= lanes;
+                continue;
+            }
+            if !filled {
                 simd::run(BicubicOp { su, sv, u: &u, v: &v, ku, kv, cp, nu, cam, light, m: &f.view_proj, out: &mut o });
+                filled = true;
                 continue;
             }
             let mut g = BicubicOut::default();
@@ -550,7 +559,8 @@ impl NurbsProgram<'_> {
         }
         let n = V3 { x: o.nx, y: o.ny, z: o.nz };
         let (ndl, spec, d) = (o.ndl, o.spec, o.depth);
-        let mut degenerate = 0u16;
+        // degenerate normals and solo lanes take the per-lane program
+        let mut degenerate = solo;
         for lane in 0..LANES {
             let ok = o.len[lane] > 1e-6 * o.scale[lane] * o.scale[lane] && o.finite[lane] != 0.0;
             if !ok {
@@ -566,13 +576,17 @@ impl NurbsProgram<'_> {
                 // Blinn–Phong, the same steps as `lane`
                 let albedo = albedo(t, patch);
                 let amb = f.ranges[2];
-                let enc = hitex_core::texture::srgb_encoder();
-                let e = |x: f32| enc.encode(x);
+                let mut lin = [[0.0f32; LANES]; 3];
+                for lane in 0..LANES {
+                    let k = amb + ndl[lane];
+                    lin[0][lane] = albedo.x * k + spec[lane];
+                    lin[1][lane] = albedo.y * k + spec[lane];
+                    lin[2][lane] = albedo.z * k + spec[lane];
+                }
+                let codes = simd::encode_rgb(hitex_core::texture::srgb_encoder(), &lin);
                 for lane in 0..LANES {
                     if b.live & (1 << lane) != 0 {
-                        let k = amb + ndl[lane];
-                        let c = |alb: f32| alb * k + spec[lane];
-                        rgba[lane] = [e(c(albedo.x)), e(c(albedo.y)), e(c(albedo.z)), 255];
+                        rgba[lane] = codes[lane];
                     }
                 }
             }
@@ -779,9 +793,9 @@ fn point_partials<S: pulp::Simd>(
 }
 
 /// Groups the `lanes` by their knot-span pair: `(su, sv, lanes of the
-/// pair)`, the first group the first lane's, at most four groups (else
-/// `None`). A lane is in span s when k[s] ≤ x < k[s+1], or at the domain's
-/// end when s is the last non-empty span: exactly `find_span`'s answer.
+/// pair)`, the first group the first lane's (`None` when no lane is given).
+/// A lane is in span s when k[s] ≤ x < k[s+1], or at the domain's end when
+/// s is the last non-empty span: exactly `find_span`'s answer.
 #[allow(clippy::too_many_arguments)]
 fn span_groups(ku: &[f32], kv: &[f32], nu: usize, nv: usize, u: &Lanes, v: &Lanes, lanes: u16) -> Option<SpanGroups> {
     let (u1, v1) = (ku[nu], kv[nv]);
@@ -789,7 +803,7 @@ fn span_groups(ku: &[f32], kv: &[f32], nu: usize, nv: usize, u: &Lanes, v: &Lane
     let in_span = |x: f32, k: &[f32], s: usize, end_span: usize, end: f32| {
         (k[s] <= x && x < k[s + 1]) || (s == end_span && x >= end)
     };
-    let mut groups = SpanGroups { groups: [(0, 0, 0); 4], len: 0 };
+    let mut groups = SpanGroups { groups: [(0, 0, 0); LANES], len: 0 };
     for lane in (0..LANES).filter(|l| lanes & (1 << l) != 0) {
         let (x, y) = (u[lane], v[lane]);
         let found = groups.groups[..groups.len]
@@ -797,19 +811,18 @@ fn span_groups(ku: &[f32], kv: &[f32], nu: usize, nv: usize, u: &Lanes, v: &Lane
             .position(|g| in_span(x, ku, g.0, u_end, u1) && in_span(y, kv, g.1, v_end, v1));
         match found {
             Some(i) => groups.groups[i].2 |= 1 << lane,
-            None if groups.len < 4 => {
+            None => {
                 groups.groups[groups.len] = (find_span(nu - 1, 3, x, ku), find_span(nv - 1, 3, y, kv), 1 << lane);
                 groups.len += 1;
             }
-            None => return None,
         }
     }
     (groups.len > 0).then_some(groups)
 }
 
-/// At most four knot-span pairs of a block's lanes: `(su, sv, lanes)`.
+/// The knot-span pairs of a block's lanes: `(su, sv, lanes)`.
 struct SpanGroups {
-    groups: [(usize, usize, u16); 4],
+    groups: [(usize, usize, u16); LANES],
     len: usize,
 }
 
@@ -867,9 +880,8 @@ impl pulp::WithSimd for PointNormalOp<'_> {
 /// The block evaluator: exact points and unit normals of patch `patch` of
 /// the packed textures at 16 parameters, in f32, with the prepared bicubic
 /// kernel on SIMD lanes (the current [`simd::level`]), once per pair of knot
-/// spans the parameters fall in. `None` when the patch is not bicubic or the
-/// parameters fall in more than four span pairs (call [`eval_packed`] per
-/// parameter then). Parameters are clamped into the domain.
+/// spans the parameters fall in. `None` when the patch is not bicubic (call
+/// [`eval_packed`] per parameter then). Parameters are clamped into the domain.
 pub fn eval_bicubic_block(t: &PackedNurbs, patch: usize, u: &Lanes, v: &Lanes) -> Option<BlockPointNormal> {
     if patch >= t.patches as usize {
         return None;
@@ -1144,15 +1156,22 @@ mod tests {
             100.0,
         )
         .unwrap();
-        let mut checked = 0;
+        let (mut checked, mut many_spans) = (0, 0);
         for mode in [SHADED, ISOPHOTE, NORMAL] {
             let mut frame = prepared.frame(&cam, 64, 48);
             frame.params[0] = mode;
             frame.params[3] = 1;
             let prog = NurbsProgram::new(&frame, &prepared.packed);
-            for k in 0..200 {
-                // 16 lanes near one point: most blocks share spans, some straddle a knot
-                let (cu, cv) = ((k % 20) as f32 / 19.0, (k / 20) as f32 / 9.0);
+            for k in 0..260 {
+                // 16 lanes near one point: most blocks share spans, some straddle a knot;
+                // past 200, quads scattered over the patch (packed from several
+                // triangles): many span pairs, lanes alone in theirs
+                let (cu, cv) = ((k % 20) as f32 / 19.0, (k / 20 % 10) as f32 / 9.0);
+                let scatter = |lane: usize| {
+                    let q = (lane / 4 * 7 + k * 3) % 13;
+                    let solo = if lane % 4 == 3 { 0.31 * (lane / 4) as f32 } else { 0.0 };
+                    (((q as f32 * 0.077 + solo) % 1.0), ((q as f32 * 0.131 + solo * 1.7) % 1.0))
+                };
                 let mut b = Block::<VARYINGS> {
                     material: 0,
                     x: 0,
@@ -1166,6 +1185,21 @@ mod tests {
                     b.v[2][lane] = 1.0;
                     b.v[3][lane] = (cu + 0.004 * (lane % 8) as f32).min(1.0);
                     b.v[4][lane] = (cv + 0.004 * (lane / 8) as f32).min(1.0);
+                    if k >= 200 {
+                        let (su, sv) = scatter(lane);
+                        b.v[3][lane] = su + 0.002 * (lane % 2) as f32;
+                        b.v[4][lane] = sv + 0.002 * (lane / 2 % 2) as f32;
+                    }
+                }
+                if k >= 200 {
+                    // patch 0: its header and knots lead the packed rows
+                    let t = &prepared.packed;
+                    let (nu, nv) = (t.control[0][2] as usize, t.control[0][3] as usize);
+                    let ku = &t.knots_u[1..1 + t.knots_u[0] as usize];
+                    let kv = &t.knots_v[1..1 + t.knots_v[0] as usize];
+                    if span_groups(ku, kv, nu, nv, &b.v[3], &b.v[4], b.live).is_some_and(|g| g.len > 4) {
+                        many_spans += 1;
+                    }
                 }
                 let mut rgba = [[0u8; 4]; LANES];
                 let mut depth = [f32::NAN; LANES];
@@ -1185,7 +1219,8 @@ mod tests {
                 }
             }
         }
-        assert!(checked > 300, "the block path took only {checked} blocks");
+        assert!(checked > 3 * 250, "the block path took only {checked} blocks");
+        assert!(many_spans >= 9, "only {many_spans} blocks over more than four span pairs");
     }
 
     #[test]

@@ -660,6 +660,18 @@ fn raster_band<const K: usize, S: BlockShader<K>>(
     }
 }
 
+/// Perspective-correct varyings of a block's lanes (a function, not a
+/// closure: it must be inlined into the SIMD level's code).
+#[inline(always)]
+fn interpolate<const K: usize>(t: &Setup<K>, l1: &Lanes, l2: &Lanes, w: &Lanes, v: &mut [Lanes; K]) {
+    for j in 0..K {
+        let (a0, a1, a2) = (t.va[0][j], t.va[1][j], t.va[2][j]);
+        for lane in 0..LANES {
+            v[j][lane] = (a0 + l1[lane] * a1 + l2[lane] * a2) * w[lane];
+        }
+    }
+}
+
 /// One 8×2 block of a triangle: interpolation, the early depth tests, and
 /// its covered quads added to the batch.
 #[allow(clippy::too_many_arguments)]
@@ -732,19 +744,11 @@ fn raster_block<const K: usize, S: BlockShader<K>>(
         }
     }
     let key = (t.material, t.key);
-    let interpolate = |v: &mut [Lanes; K]| {
-        for j in 0..K {
-            let (a0, a1, a2) = (t.va[0][j], t.va[1][j], t.va[2][j]);
-            for lane in 0..LANES {
-                v[j][lane] = (a0 + l1[lane] * a1 + l2[lane] * a2) * w[lane];
-            }
-        }
-    };
     // every quad covered (large triangles): the block is shaded as it is
     if (0..4).all(|quad| (mask >> (4 * quad)) & 0xf != 0) {
         batch.flush(out);
         let b = &mut batch.block;
-        interpolate(&mut b.v);
+        interpolate(t, &l1, &l2, &w, &mut b.v);
         b.w = w;
         b.z = z;
         b.live = mask;
@@ -759,7 +763,7 @@ fn raster_block<const K: usize, S: BlockShader<K>>(
         return;
     }
     let mut v = [[0.0f32; LANES]; K];
-    interpolate(&mut v);
+    interpolate(t, &l1, &l2, &w, &mut v);
     // the covered quads join the batch, in order
     for quad in 0..4 {
         let live = (mask >> (4 * quad)) & 0xf;
