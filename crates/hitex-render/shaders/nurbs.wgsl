@@ -391,16 +391,16 @@ fn eval_patch(pid: i32, u_in: f32, v_in: f32, second: bool) -> Eval {
     let a3 = sm.a[3];
     let a4 = sm.a[4];
     let a5 = sm.a[5];
-    // rational quotient rule
+    // rational quotient rule, one division (1/w) for every term
     var e: Eval;
-    let w = a0.w;
-    e.s = a0.xyz / w;
-    e.su = (a1.xyz - e.s * a1.w) / w;
-    e.sv = (a2.xyz - e.s * a2.w) / w;
+    let rw = 1.0 / a0.w;
+    e.s = a0.xyz * rw;
+    e.su = (a1.xyz - e.s * a1.w) * rw;
+    e.sv = (a2.xyz - e.s * a2.w) * rw;
     if second {
-        e.suu = (a3.xyz - e.su * (2.0 * a1.w) - e.s * a3.w) / w;
-        e.suv = (a4.xyz - e.su * a2.w - e.sv * a1.w - e.s * a4.w) / w;
-        e.svv = (a5.xyz - e.sv * (2.0 * a2.w) - e.s * a5.w) / w;
+        e.suu = (a3.xyz - e.su * (2.0 * a1.w) - e.s * a3.w) * rw;
+        e.suv = (a4.xyz - e.su * a2.w - e.sv * a1.w - e.s * a4.w) * rw;
+        e.svv = (a5.xyz - e.sv * (2.0 * a2.w) - e.s * a5.w) * rw;
     }
     return e;
 }

@@ -76,16 +76,16 @@ pub fn eval_packed(t: &PackedNurbs, patch: usize, u: f32, v: f32, second: bool, 
             sums(&bu, &bv, p + 1, q + 1, cp, nu, su - p, sv - q, second)
         }
     };
-    // rational quotient rule
-    let w = a[0].w;
-    let s = a[0].truncate() / w;
-    let s_u = (a[1].truncate() - s * a[1].w) / w;
-    let s_v = (a[2].truncate() - s * a[2].w) / w;
+    // rational quotient rule, with one division (1/w) for every term
+    let rw = 1.0 / a[0].w;
+    let s = a[0].truncate() * rw;
+    let s_u = (a[1].truncate() - s * a[1].w) * rw;
+    let s_v = (a[2].truncate() - s * a[2].w) * rw;
     let mut e = Eval { s, su: s_u, sv: s_v, ..Default::default() };
     if second {
-        e.suu = (a[3].truncate() - s_u * (2.0 * a[1].w) - s * a[3].w) / w;
-        e.suv = (a[4].truncate() - s_u * a[2].w - s_v * a[1].w - s * a[4].w) / w;
-        e.svv = (a[5].truncate() - s_v * (2.0 * a[2].w) - s * a[5].w) / w;
+        e.suu = (a[3].truncate() - s_u * (2.0 * a[1].w) - s * a[3].w) * rw;
+        e.suv = (a[4].truncate() - s_u * a[2].w - s_v * a[1].w - s * a[4].w) * rw;
+        e.svv = (a[5].truncate() - s_v * (2.0 * a[2].w) - s * a[5].w) * rw;
     }
     e
 }
@@ -715,13 +715,14 @@ impl<S: pulp::Simd> R<S> {
         let z = self.k(0.0);
         self.0.select_f32s(self.0.less_than_f32s(z, a), a, z)
     }
-    /// `(d.xyz − s·d.w) / w`: a first derivative by the quotient rule.
+    /// `(d.xyz − s·d.w) · (1/w)`: a first derivative by the quotient rule
+    /// (`rw` = 1/w).
     #[inline(always)]
-    fn quotient(self, d: &[S::f32s; 4], s: [S::f32s; 3], w: S::f32s) -> [S::f32s; 3] {
+    fn quotient(self, d: &[S::f32s; 4], s: [S::f32s; 3], rw: S::f32s) -> [S::f32s; 3] {
         [
-            self.div(self.sub(d[0], self.mul(s[0], d[3])), w),
-            self.div(self.sub(d[1], self.mul(s[1], d[3])), w),
-            self.div(self.sub(d[2], self.mul(s[2], d[3])), w),
+            self.mul(self.sub(d[0], self.mul(s[0], d[3])), rw),
+            self.mul(self.sub(d[1], self.mul(s[1], d[3])), rw),
+            self.mul(self.sub(d[2], self.mul(s[2], d[3])), rw),
         ]
     }
     /// Row `i` of `m · (p, 1)` in glam's order: ((c0·x + c1·y) + c2·z) + c3·1.
@@ -786,10 +787,10 @@ fn point_partials<S: pulp::Simd>(
             a[2][k] = r.add(a[2][k], r.mul(t0[k], bv[1][s]));
         }
     }
-    // rational quotient rule
-    let wt = a[0][3];
-    let sp = [r.div(a[0][0], wt), r.div(a[0][1], wt), r.div(a[0][2], wt)];
-    [sp, r.quotient(&a[1], sp, wt), r.quotient(&a[2], sp, wt)]
+    // rational quotient rule, one division (as `eval_packed`)
+    let rw = r.div(r.k(1.0), a[0][3]);
+    let sp = [r.mul(a[0][0], rw), r.mul(a[0][1], rw), r.mul(a[0][2], rw)];
+    [sp, r.quotient(&a[1], sp, rw), r.quotient(&a[2], sp, rw)]
 }
 
 /// Groups the `lanes` by their knot-span pair: `(su, sv, lanes of the
