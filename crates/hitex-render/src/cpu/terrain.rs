@@ -971,6 +971,13 @@ impl BlockShader<4> for MeshProgram<'_> {
         (v[2] > 0.5) as u32
     }
 
+    /// Frames that record bank traffic record exactly the quads that
+    /// drawing triangle by triangle shades.
+    #[inline(always)]
+    fn packs_triangles(&self) -> bool {
+        self.banks.is_empty()
+    }
+
     #[inline(always)]
     fn shade_block(&self, b: &Block<4>, rgba: &mut [[u8; 4]; LANES], _depth: &mut Lanes) {
         let first = (b.live.trailing_zeros() as usize).min(LANES - 1);
