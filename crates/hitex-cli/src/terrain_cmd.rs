@@ -91,8 +91,9 @@ pub struct RenderArgs {
     /// Elevation model: GeoTIFF, SRTM .hgt, ESRI ASCII .asc, numpy .npy/.npz.
     #[arg(long)]
     pub dem: PathBuf,
-    /// Imagery: a GeoTIFF in the DEM's CRS, or PNG/JPEG with a world file
-    /// (.pgw/.jgw/.wld; used as RGB); without it the terrain is coloured by elevation.
+    /// Imagery: a GeoTIFF (reprojected when its CRS is not the DEM's), or
+    /// PNG/JPEG with a world file in the DEM's CRS (.pgw/.jgw/.wld; used as
+    /// RGB); without it the terrain is coloured by elevation.
     #[arg(long)]
     pub image: Option<PathBuf>,
     /// Image bands for red, green, blue (1-based), e.g. Landsat's 3,2,1.
@@ -117,6 +118,12 @@ pub struct RenderArgs {
     /// Output size, WIDTHxHEIGHT.
     #[arg(long, value_parser = parse_size, default_value = "1024x768")]
     pub size: (u32, u32),
+    /// The projected CRS to render in (EPSG:N or a PROJ.4 definition): the
+    /// DEM and the imagery are reprojected into it. Default: the DEM's own
+    /// when projected; for a geographic DEM the imagery's, or a local metric
+    /// frame at the DEM's centre.
+    #[arg(long)]
+    pub crs: Option<String>,
     /// Which renderer to use.
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
     pub backend: Backend,
@@ -162,12 +169,17 @@ pub(crate) fn world_imagery(
     img.projection = dem.projection;
     img.citation = dem.citation.clone();
     check_coregistered(dem, &img, dem_path, path)?;
-    let rgb = Image::from_fn(img.width, img.height, ColorSpace::Srgb, |x, y| {
+    let rgb = world_rgb(&img)?;
+    Ok((img, rgb))
+}
+
+/// The pixels of world-file imagery (bands 1–3, 0–255) as RGB.
+fn world_rgb(img: &GeoRaster) -> Result<Image, CliError> {
+    Image::from_fn(img.width, img.height, ColorSpace::Srgb, |x, y| {
         let c = |k: usize| img.get(x, y, k).clamp(0.0, 255.0) as u8;
         [c(0), c(1), c(2), 255]
     })
-    .map_err(|e| CliError::Input(e.to_string()))?;
-    Ok((img, rgb))
+    .map_err(|e| CliError::Input(e.to_string()))
 }
 
 /// `--bands "3,2,1"` as 0-based indices.
@@ -297,23 +309,56 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     }
     crate::image_out(&a.output)?;
     let bands = parse_band_list(&a.bands)?;
-    let mut dem = load_dem(&a.dem)?;
-    let filled = fill_holes(&mut dem);
-    if filled > 0 {
-        println!("filled {filled} missing elevation samples from their neighbours");
-    }
-    let heights: Vec<f32> = (0..dem.width * dem.height).map(|i| dem.data[i as usize * dem.bands]).collect();
-    let (pyramid, image_extent) = match &a.image {
+    let dem = load_dem(&a.dem)?;
+    let crs = a
+        .crs
+        .as_deref()
+        .map(hitex_io::crs::Crs::parse)
+        .transpose()
+        .map_err(|m| CliError::Input(format!("--crs: {m}")))?;
+    // imagery: a world file takes the DEM's own CRS (before any reprojection)
+    let (image, world) = match &a.image {
         Some(path) if hitex_io::geotiff::is_world_image(path) => {
-            let (img, rgb) = world_imagery(path, &dem, &a.dem)?;
-            (MipPyramid::build(rgb), img.extent())
+            (Some((world_imagery(path, &dem, &a.dem)?.0, path.as_path())), true)
         }
         Some(path) => {
             let img = load_geotiff(path)?;
-            let bands = check_bands(bands, &img, path)?;
-            check_coregistered(&dem, &img, &a.dem, path)?;
-            (MipPyramid::build(stretched(&img, bands)?), img.extent())
+            check_bands(bands, &img, path)?;
+            (Some((img, path.as_path())), false)
         }
+        None => (None, false),
+    };
+    // one metric CRS for both: geographic DEMs and imagery in another CRS are reprojected
+    let same = image.as_ref().is_none_or(|(i, _)| dem.same_crs(i));
+    let geographic = dem.is_geographic();
+    let co = if crs.is_some() || geographic || !same {
+        let co = hitex_io::reproject::co_register(dem, &a.dem, image, crs.as_ref())?;
+        for n in &co.notes {
+            println!("{n}");
+        }
+        co
+    } else {
+        hitex_io::reproject::CoRegistered {
+            dem,
+            image: image.map(|(i, _)| i),
+            crs: None,
+            unit_metres: 1.0,
+            notes: Vec::new(),
+        }
+    };
+    let (mut dem, image, unit) = (co.dem, co.image, co.unit_metres);
+    if let (Some(img), Some(path)) = (&image, &a.image) {
+        check_coregistered(&dem, img, &a.dem, path)?;
+    }
+    let filled = fill_holes(&mut dem);
+    if filled > 0 {
+        let why = if co.notes.is_empty() { "" } else { " (nodata, or outside the source after reprojection)" };
+        println!("filled {filled} missing elevation samples from their neighbours{why}");
+    }
+    let heights: Vec<f32> = (0..dem.width * dem.height).map(|i| dem.data[i as usize * dem.bands]).collect();
+    let (pyramid, image_extent) = match &image {
+        Some(img) if world => (MipPyramid::build(world_rgb(img)?), img.extent()),
+        Some(img) => (MipPyramid::build(stretched(img, bands)?), img.extent()),
         None => (MipPyramid::build(hypsometric(&heights, dem.width, dem.height)?), dem.extent()),
     };
     // texture coordinates of each post from the georeferencing of both rasters
@@ -323,13 +368,8 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
         let wy = dem.origin[1] - (j as f64 + 0.5) * dem.pixel[1];
         Vec2::new(((wx - ix0) / (ix1 - ix0)) as f32, ((iy1 - wy) / (iy1 - iy0)) as f32)
     };
-    // post spacing in metres: geographic DEMs (degrees) are converted at their latitude
-    let spacing = if dem.epsg == Some(4326) {
-        let lat = (dem.origin[1] - dem.pixel[1] * dem.height as f64 / 2.0).to_radians();
-        [(dem.pixel[0] * 111_320.0 * lat.cos()) as f32, (dem.pixel[1] * 110_540.0) as f32]
-    } else {
-        [dem.pixel[0] as f32, dem.pixel[1] as f32]
-    };
+    // post spacing in metres (the CRS's unit may be the foot)
+    let spacing = [(dem.pixel[0] * unit) as f32, (dem.pixel[1] * unit) as f32];
     let mesh =
         hitex_core::terrain::grid_mesh(&heights, dem.width as usize, dem.height as usize, spacing, a.exaggeration, uv)
             .map_err(|e| CliError::Input(format!("{}: {e}", a.dem.display())))?;

@@ -132,9 +132,18 @@ fn parse_shard(s: &str) -> Result<(u32, u32), String> {
 
 /// `hitex terrain build`.
 /// The store metadata of georeferenced imagery `img` described as `name`.
-fn meta_for(img: &hitex_io::geotiff::GeoRaster, name: &str) -> StoreMeta {
+/// Imagery in longitude and latitude is refused: a store's texels are metric.
+fn meta_for(img: &hitex_io::geotiff::GeoRaster, name: &str, path: &Path) -> Result<StoreMeta, CliError> {
+    if img.is_geographic() {
+        return Err(CliError::Input(format!(
+            "{}: the imagery is in longitude and latitude ({}): a store needs it in a projected CRS; \
+             reproject it first (e.g. gdalwarp -t_srs EPSG:N), or use `terrain render`, which reprojects",
+            path.display(),
+            img.crs_name()
+        )));
+    }
     let crs = img.epsg.map_or_else(|| img.crs_name(), |e| format!("EPSG:{e}"));
-    StoreMeta::for_source(img.width, img.height, img.origin, img.pixel, &crs, name)
+    Ok(StoreMeta::for_source(img.width, img.height, img.origin, img.pixel, &crs, name))
 }
 
 pub fn build(a: BuildArgs) -> Result<(), CliError> {
@@ -150,7 +159,7 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
             let dem = crate::terrain_cmd::load_dem(d)?;
             let (img, rgb) = crate::terrain_cmd::world_imagery(path, &dem, d)?;
             let name = format!("{} (world file)", path.display());
-            let meta = meta_for(&img, &name);
+            let meta = meta_for(&img, &name, path)?;
             let src = MemorySource { width: img.width, height: img.height, rgba: rgb.bytes().to_vec(), name };
             (Box::new(src) as Box<dyn TileSource>, meta)
         }
@@ -164,7 +173,7 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
             }
             let bands = crate::terrain_cmd::parse_bands(&a.bands, &img, path)?;
             let name = format!("{} bands {}", path.display(), a.bands);
-            let meta = meta_for(&img, &name);
+            let meta = meta_for(&img, &name, path)?;
             (Box::new(GeoTiffSource::new(tiff, bands, name)?), meta)
         }
         (None, Some((w, h))) => {

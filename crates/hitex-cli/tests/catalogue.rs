@@ -113,6 +113,37 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
         "header claims 16384² float samples, file of 138 bytes",
         &["terrain", "render", "--dem", &w("claim.tif", &tiff_claim()), "-o", &out],
     ));
+    // georeferencing and coordinate systems
+    let geo_keys = [1024, 0, 1, 2, 2048, 0, 1, 4326];
+    let sheared = [30.0, 5.0, 0.0, 4e5, 0.0, -30.0, 0.0, 5e6, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+    let f = w("sheared.tif", &georef_tiff(&[(34264, &sheared)], &[1024, 0, 1, 1, 3072, 0, 1, 32632]));
+    v.push(c(
+        "GeoTIFF DEM",
+        "rotated or sheared (ModelTransformation)",
+        &["terrain", "render", "--dem", &f, "-o", &out],
+    ));
+    let (tie, scale) = ([0.0, 0.0, 0.0, 7.0, 46.0, 0.0], [0.001, 0.001, 0.0]);
+    let geo = [(33922, &tie[..]), (33550, &scale[..])];
+    let f = w("cubits.tif", &georef_tiff(&geo, &[1024, 0, 1, 2, 2048, 0, 1, 4326, 4099, 0, 1, 9999]));
+    v.push(c("GeoTIFF DEM", "vertical unit neither metre nor foot", &["terrain", "render", "--dem", &f, "-o", &out]));
+    let f = w("user-defined.tif", &georef_tiff(&geo, &[1024, 0, 1, 1, 3072, 0, 1, 32767]));
+    v.push(c(
+        "GeoTIFF DEM",
+        "user-defined CRS the coordinate library cannot resolve, reprojection asked",
+        &["terrain", "render", "--dem", &f, "--crs", "EPSG:32632", "-o", &out],
+    ));
+    let f = w("geographic.tif", &georef_tiff(&geo, &geo_keys));
+    v.push(c("--crs", "a geographic CRS", &["terrain", "render", "--dem", &f, "--crs", "EPSG:4326", "-o", &out]));
+    let far = [0.0, 0.0, 0.0, 700_000.0, 1_000_000.0, 0.0];
+    let img = w(
+        "elsewhere.tif",
+        &georef_tiff(&[(33922, &far), (33550, &[30.0, 30.0, 0.0])], &[1024, 0, 1, 1, 3072, 0, 1, 32632]),
+    );
+    v.push(c(
+        "GeoTIFF imagery",
+        "no overlap with the DEM after reprojection",
+        &["terrain", "render", "--dem", &f, "--image", &img, "--bands", "1,1,1", "-o", &out],
+    ));
     v.push(c(
         "PNG imagery",
         "header claims 16384×16384, file of 65 bytes",
@@ -277,6 +308,24 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
 
 /// A little-endian TIFF whose one IFD declares a 16384×16384 float raster
 /// backed by a 4-byte strip.
+/// A 16×16 int16 GeoTIFF with the given georeferencing tags (f64 values)
+/// and GeoKeys (four numbers a key).
+fn georef_tiff(tags: &[(u16, &[f64])], keys: &[u16]) -> Vec<u8> {
+    use tiff::encoder::{TiffEncoder, colortype::GrayI16};
+    use tiff::tags::Tag;
+    let mut buf = std::io::Cursor::new(Vec::new());
+    let mut enc = TiffEncoder::new(&mut buf).unwrap();
+    let mut img = enc.new_image::<GrayI16>(16, 16).unwrap();
+    for (tag, v) in tags {
+        img.encoder().write_tag(Tag::Unknown(*tag), *v).unwrap();
+    }
+    let mut dir = vec![1u16, 1, 0, (keys.len() / 4) as u16];
+    dir.extend_from_slice(keys);
+    img.encoder().write_tag(Tag::GeoKeyDirectoryTag, &dir[..]).unwrap();
+    img.write_data(&[100i16; 256]).unwrap();
+    buf.into_inner()
+}
+
 fn tiff_claim() -> Vec<u8> {
     let entries: [(u16, u16, u32); 10] = [
         (256, 4, 16384), // ImageWidth, LONG

@@ -111,6 +111,18 @@ pub fn run(target: Target, data: &[u8]) -> bool {
             match crate::geotiff::parse_geotiff(std::io::Cursor::new(data), data.len() as u64, Path::new("fuzz.tif")) {
                 Ok(mut r) => {
                     crate::geotiff::fill_holes(&mut r);
+                    // its CRS, and a small reprojection into a local frame
+                    if let Ok(from) = r.crs() {
+                        let (x0, x1, y0, y1) = r.extent();
+                        let centre = [(x0 + x1) / 2.0, (y0 + y1) / 2.0];
+                        let wgs = crate::crs::Crs::wgs84();
+                        let c = from.point(&wgs, centre);
+                        if let Ok(to) = crate::crs::Crs::local(c[0], c[1])
+                            && let Ok(g) = crate::reproject::covering_grid(&r, &from, &to, 1 << 16)
+                        {
+                            crate::reproject::reproject(&r, &from, &to, &g, None);
+                        }
+                    }
                     true
                 }
                 Err(_) => false,

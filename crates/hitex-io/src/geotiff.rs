@@ -28,7 +28,8 @@ pub struct GeoRaster {
     pub pixel: [f64; 2],
     /// The nodata value, if the file declares one.
     pub nodata: Option<f64>,
-    /// Projected CRS code from the GeoKeys (ProjectedCSTypeGeoKey), if any.
+    /// EPSG code of the CRS from the GeoKeys: ProjectedCSTypeGeoKey, or
+    /// GeographicTypeGeoKey for a geographic model; 32767 is user-defined.
     pub epsg: Option<u16>,
     /// Projection code (ProjectionGeoKey), for user-defined CRSs.
     pub projection: Option<u16>,
@@ -108,7 +109,12 @@ fn open_decoder<R: Read + Seek>(reader: R, path: &Path) -> Result<Decoder<R>, Io
 /// The raster's size, band layout and georeferencing (no samples); checks
 /// the declared size against the file's `len` bytes, and, when `whole`, the
 /// decoded raster against the memory cap.
-fn read_header<R: Read + Seek>(d: &mut Decoder<R>, len: u64, path: &Path, whole: bool) -> Result<GeoRaster, IoError> {
+fn read_header<R: Read + Seek>(
+    d: &mut Decoder<R>,
+    len: u64,
+    path: &Path,
+    whole: bool,
+) -> Result<(GeoRaster, f64), IoError> {
     let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
     let (w, h) = d.dimensions().map_err(|e| fmt(e.to_string()))?;
     let (bands, bits) = match d.colortype().map_err(|e| fmt(e.to_string()))? {
@@ -132,40 +138,78 @@ fn read_header<R: Read + Seek>(d: &mut Decoder<R>, len: u64, path: &Path, whole:
         // read by windows: only the claim against the file's bytes matters
         crate::limits::check_backing(&what, Some(raw), len, crate::limits::ANY_RATIO).map_err(fmt)?;
     }
-    let tie =
-        d.get_tag_f64_vec(Tag::ModelTiepointTag).map_err(|_| fmt("no ModelTiepoint tag: not georeferenced".into()))?;
-    let scale = d
-        .get_tag_f64_vec(Tag::ModelPixelScaleTag)
-        .map_err(|_| fmt("no ModelPixelScale tag: not georeferenced".into()))?;
-    if tie.len() < 6
-        || scale.len() < 2
-        || !tie.iter().chain(&scale).all(|v| v.is_finite())
-        || scale[0] <= 0.0
-        || scale[1] <= 0.0
-    {
-        return Err(fmt(format!("unusable georeferencing: tiepoint {tie:?}, pixel scale {scale:?}")));
-    }
-    // top-left corner in world coordinates (raster space is pixel-is-area)
-    let origin = [tie[3] - tie[0] * scale[0], tie[4] + tie[1] * scale[1]];
-    let nodata =
-        d.get_tag_ascii_string(Tag::GdalNodata).ok().and_then(|s| s.trim().trim_end_matches('\0').parse::<f64>().ok());
     let keys = d.get_tag_u16_vec(Tag::GeoKeyDirectoryTag).unwrap_or_default();
     let key = |id: u16| keys.chunks_exact(4).skip(1).find(|k| k[0] == id && k[1] == 0).map(|k| k[3]);
-    let (epsg, projection) = (key(3072), key(3074));
+    // the world position of pixel (i, j): x = a·i + b·j + c, y = d·i + e·j + f
+    // (i, j at the pixel's corner under PixelIsArea, at its centre under PixelIsPoint)
+    let affine = match d.get_tag_f64_vec(Tag::ModelTransformationTag) {
+        Ok(m) => {
+            if m.len() < 16 || !m.iter().all(|v| v.is_finite()) {
+                return Err(fmt(format!("ModelTransformation of {} values: 16 finite values expected", m.len())));
+            }
+            [m[0], m[1], m[3], m[4], m[5], m[7]]
+        }
+        Err(_) => {
+            let tie = d
+                .get_tag_f64_vec(Tag::ModelTiepointTag)
+                .map_err(|_| fmt("no ModelTiepoint or ModelTransformation tag: not georeferenced".into()))?;
+            let scale = d
+                .get_tag_f64_vec(Tag::ModelPixelScaleTag)
+                .map_err(|_| fmt("no ModelPixelScale tag: not georeferenced".into()))?;
+            if tie.len() < 6 || scale.len() < 2 || !tie.iter().chain(&scale).all(|v| v.is_finite()) {
+                return Err(fmt(format!("unusable georeferencing: tiepoint {tie:?}, pixel scale {scale:?}")));
+            }
+            [scale[0], 0.0, tie[3] - tie[0] * scale[0], 0.0, -scale[1], tie[4] + tie[1] * scale[1]]
+        }
+    };
+    let [a, b, c, dd, e, f] = affine;
+    if b != 0.0 || dd != 0.0 {
+        return Err(fmt(format!(
+            "a rotated or sheared raster (pixel axes x = {a}·i + {b}·j, y = {dd}·i + {e}·j): only north-up rasters are read"
+        )));
+    }
+    if !(a > 0.0 && e < 0.0) {
+        return Err(fmt(format!(
+            "unusable georeferencing: pixel size {a} × {} (positive east, rows from north expected)",
+            -e
+        )));
+    }
+    // RasterTypeGeoKey 2 (PixelIsPoint, as SRTM-style grids are): the
+    // georeferenced position is the first pixel's centre
+    let half = if key(1025) == Some(2) { 0.5 } else { 0.0 };
+    let origin = [c - half * a, f - half * e];
+    let nodata =
+        d.get_tag_ascii_string(Tag::GdalNodata).ok().and_then(|s| s.trim().trim_end_matches('\0').parse::<f64>().ok());
+    // ProjectedCSTypeGeoKey, or GeographicTypeGeoKey for a geographic model (GTModelTypeGeoKey 2)
+    let geographic = key(1024) == Some(2) || (key(1024).is_none() && key(3072).is_none());
+    let epsg = key(3072).or_else(|| key(2048).filter(|_| geographic));
+    let projection = key(3074);
+    // VerticalUnitsGeoKey: heights in feet come back in metres
+    let z_scale = match key(4099) {
+        None | Some(9001) | Some(32767) => 1.0,
+        Some(9002) => 0.3048,
+        Some(9003) => 1200.0 / 3937.0,
+        Some(u) => {
+            return Err(fmt(format!(
+                "vertical unit code {u} (VerticalUnitsGeoKey) is not one of metre (9001), foot (9002), US survey foot (9003)"
+            )));
+        }
+    };
     let citation =
         d.get_tag_ascii_string(Tag::Unknown(34737)).ok().map(|s| s.trim_end_matches(['|', '\0']).to_string());
-    Ok(GeoRaster {
+    let r = GeoRaster {
         width: w,
         height: h,
         bands,
         data: Vec::new(),
         origin,
-        pixel: [scale[0], scale[1]],
+        pixel: [a, -e],
         nodata,
         epsg,
         projection,
         citation,
-    })
+    };
+    Ok((r, z_scale))
 }
 
 /// Reads a GeoTIFF of `len` bytes from `reader`; `path` is the file named in
@@ -174,13 +218,18 @@ fn read_header<R: Read + Seek>(d: &mut Decoder<R>, len: u64, path: &Path, whole:
 pub fn parse_geotiff<R: Read + Seek>(reader: R, len: u64, path: &Path) -> Result<GeoRaster, IoError> {
     let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
     let mut d = open_decoder(reader, path)?;
-    let mut r = read_header(&mut d, len, path, true)?;
+    let (mut r, z_scale) = read_header(&mut d, len, path, true)?;
     let samples = r.width as u64 * r.height as u64 * r.bands as u64;
     let data = to_f32(d.read_image().map_err(|e| fmt(format!("cannot decode the samples: {e}")))?).map_err(fmt)?;
     if data.len() as u64 != samples {
         return Err(fmt(format!("{} samples decoded, {samples} declared", data.len())));
     }
     r.data = data;
+    if z_scale != 1.0 {
+        r.data.iter_mut().for_each(|v| *v = (*v as f64 * z_scale) as f32);
+        // the same conversion as the samples', so that nodata still matches them exactly
+        r.nodata = r.nodata.map(|n| ((n as f32) as f64 * z_scale) as f32 as f64);
+    }
     Ok(r)
 }
 
@@ -222,7 +271,7 @@ impl GeoTiffWindows {
         let file = std::fs::File::open(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
         let len = file.metadata().map_err(|source| IoError::Read { path: path.to_path_buf(), source })?.len();
         let mut d = open_decoder(std::io::BufReader::new(file), path)?;
-        let header = read_header(&mut d, len, path, false)?;
+        let (header, _) = read_header(&mut d, len, path, false)?;
         let planar = d.get_tag_u32(Tag::PlanarConfiguration).unwrap_or(1);
         if planar != 1 {
             return Err(fmt("bands stored as separate planes: windowed reading needs interleaved bands".into()));

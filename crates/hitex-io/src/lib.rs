@@ -13,6 +13,7 @@
 
 pub mod btf_file;
 pub mod btf_images;
+pub mod crs;
 pub mod dem;
 pub mod fuzz;
 pub mod geotiff;
@@ -25,6 +26,7 @@ pub mod nurbs_json;
 pub mod obj;
 pub mod obj_freeform;
 pub mod points;
+pub mod reproject;
 pub mod scene_file;
 pub mod step;
 

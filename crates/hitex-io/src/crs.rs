@@ -1,0 +1,212 @@
+//! Coordinate reference systems: EPSG codes resolved to their PROJ.4
+//! definitions (`crs-definitions`, EPSG's register as distributed) and
+//! transformed by `proj4rs` (a pure-Rust port of PROJ.4's projections and
+//! datum shifts). Geographic coordinates are degrees (longitude, latitude)
+//! at this interface; projected ones are the CRS's own units.
+
+use crate::geotiff::GeoRaster;
+
+/// A coordinate reference system that points can be transformed between.
+#[derive(Clone)]
+pub struct Crs {
+    proj: proj4rs::Proj,
+    name: String,
+    definition: String,
+}
+
+impl std::fmt::Debug for Crs {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Crs({}: {})", self.name, self.definition)
+    }
+}
+
+impl PartialEq for Crs {
+    fn eq(&self, other: &Self) -> bool {
+        self.definition == other.definition
+    }
+}
+
+impl Crs {
+    /// The CRS of EPSG code `code`.
+    pub fn from_epsg(code: u16) -> Result<Crs, String> {
+        let def = crs_definitions::from_code(code)
+            .ok_or_else(|| format!("EPSG:{code} is not in the coordinate library's register"))?;
+        Self::from_definition(def.proj4, &format!("EPSG:{code}"))
+            .map_err(|e| format!("EPSG:{code} ({}) cannot be used: {e}", def.proj4))
+    }
+
+    /// The CRS of a PROJ.4 definition (`+proj=… +datum=…`), named `name` in messages.
+    pub fn from_definition(definition: &str, name: &str) -> Result<Crs, String> {
+        let proj = proj4rs::Proj::from_proj_string(definition).map_err(|e| e.to_string())?;
+        if !(proj.has_forward() && proj.has_inverse()) {
+            return Err(format!("{name}: the projection has no inverse"));
+        }
+        Ok(Crs { proj, name: name.to_string(), definition: definition.to_string() })
+    }
+
+    /// A CRS named by the user: `EPSG:N` or a PROJ.4 definition.
+    pub fn parse(s: &str) -> Result<Crs, String> {
+        let s = s.trim();
+        if let Some(code) = s.strip_prefix("EPSG:").or_else(|| s.strip_prefix("epsg:")) {
+            let code: u16 = code.trim().parse().map_err(|_| format!("'{s}': the EPSG code is not a number"))?;
+            return Self::from_epsg(code);
+        }
+        if s.starts_with('+') {
+            return Self::from_definition(s, s);
+        }
+        Err(format!("'{s}' is neither EPSG:N nor a PROJ.4 definition (+proj=…)"))
+    }
+
+    /// The local metric frame of an area centred at (`lon`, `lat`) degrees:
+    /// a transverse Mercator on WGS 84 through the centre with scale 1 there
+    /// (x east, y north, metres). Within 50 km of the centre its scale
+    /// departs from 1 by less than 4·10⁻⁵ and its axes from east and north
+    /// by less than the meridian convergence of the centre's neighbourhood.
+    pub fn local(lon: f64, lat: f64) -> Result<Crs, String> {
+        if !(lon.is_finite() && lat.is_finite() && lat.abs() < 90.0) {
+            return Err(format!("no local frame at longitude {lon}°, latitude {lat}°"));
+        }
+        let def = format!("+proj=tmerc +lat_0={lat:.9} +lon_0={lon:.9} +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m");
+        Self::from_definition(&def, &format!("a local metric frame at {lat:.4}°, {lon:.4}°"))
+    }
+
+    /// WGS 84 longitude, latitude (degrees).
+    pub fn wgs84() -> Crs {
+        Self::from_definition("+proj=longlat +datum=WGS84 +no_defs", "WGS 84 (EPSG:4326)")
+            .unwrap_or_else(|_| unreachable!("WGS 84 always parses"))
+    }
+
+    /// The EPSG code the CRS was made from, if any.
+    pub fn epsg(&self) -> Option<u16> {
+        self.name.strip_prefix("EPSG:").and_then(|c| c.parse().ok())
+    }
+
+    /// Name in messages.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The PROJ.4 definition.
+    pub fn definition(&self) -> &str {
+        &self.definition
+    }
+
+    /// Whether coordinates are longitude and latitude (degrees).
+    pub fn is_geographic(&self) -> bool {
+        self.proj.is_latlong()
+    }
+
+    /// Metres per unit of a projected CRS (1 for metres, 0.3048 for feet).
+    pub fn unit_metres(&self) -> f64 {
+        if self.is_geographic() { 1.0 } else { self.proj.to_meter() }
+    }
+
+    /// Transforms points (x, y) of this CRS into `to` in place; a point the
+    /// projection cannot take (outside its domain) becomes NaN.
+    pub fn transform(&self, to: &Crs, points: &mut [[f64; 2]]) {
+        let (src_deg, dst_deg) = (self.is_geographic(), to.is_geographic());
+        for p in points.iter_mut() {
+            let mut q = if src_deg { (p[0].to_radians(), p[1].to_radians(), 0.0) } else { (p[0], p[1], 0.0) };
+            let ok = p[0].is_finite()
+                && p[1].is_finite()
+                && proj4rs::transform::transform(&self.proj, &to.proj, &mut q).is_ok()
+                && q.0.is_finite()
+                && q.1.is_finite();
+            *p = match (ok, dst_deg) {
+                (false, _) => [f64::NAN; 2],
+                (true, true) => [q.0.to_degrees(), q.1.to_degrees()],
+                (true, false) => [q.0, q.1],
+            };
+        }
+    }
+
+    /// One point (x, y) of this CRS in `to`; NaN outside the projection's domain.
+    pub fn point(&self, to: &Crs, p: [f64; 2]) -> [f64; 2] {
+        let mut v = [p];
+        self.transform(to, &mut v);
+        v[0]
+    }
+}
+
+impl GeoRaster {
+    /// The raster's CRS through the coordinate library: its EPSG code, or
+    /// the UTM zone a user-defined projection code names.
+    pub fn crs(&self) -> Result<Crs, String> {
+        match (self.epsg, self.utm_zone()) {
+            (Some(c), _) if c != 32767 => Crs::from_epsg(c),
+            (_, Some(z)) => Crs::from_definition(
+                &format!(
+                    "+proj=utm +zone={}{} +datum=WGS84 +units=m +no_defs",
+                    z.abs(),
+                    if z < 0 { " +south" } else { "" }
+                ),
+                &self.crs_name(),
+            ),
+            _ => Err(format!(
+                "no coordinate reference system the coordinate library can resolve ({}): \
+                 the GeoKeys name no EPSG code",
+                self.citation.as_deref().unwrap_or("no citation")
+            )),
+        }
+    }
+
+    /// Whether the raster's coordinates are longitude and latitude.
+    pub fn is_geographic(&self) -> bool {
+        self.crs().is_ok_and(|c| c.is_geographic())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Published coordinates of known points, from the EPSG guidance note
+    /// 7-2 worked examples and the web-mercator definition.
+    #[test]
+    fn transforms_match_published_coordinates() {
+        let wgs = Crs::wgs84();
+        // Web Mercator: the antimeridian at the equator is half the equator's length
+        let m = Crs::from_epsg(3857).unwrap();
+        let p = wgs.point(&m, [180.0, 0.0]);
+        assert!((p[0] - 20_037_508.342_789).abs() < 1e-3, "{p:?}");
+        // latitude 85.0511287798° maps to the same northing
+        let p = wgs.point(&m, [0.0, 85.051_128_779_8]);
+        assert!((p[1] - 20_037_508.342_789).abs() < 0.01, "{p:?}");
+        // UTM zone 31N (EPSG:32631): the central meridian 3°E at the equator is (500000, 0)
+        let u = Crs::from_epsg(32631).unwrap();
+        let p = wgs.point(&u, [3.0, 0.0]);
+        assert!((p[0] - 500_000.0).abs() < 1e-6 && p[1].abs() < 1e-6, "{p:?}");
+        // EPSG guidance note 7-2, transverse Mercator example (OSGB 1936 / British
+        // National Grid, EPSG:27700): 50°30'N 0°30'E on the Airy ellipsoid is
+        // E 577274.99, N 69740.50; the definition here shifts the datum too, so
+        // that point is given in OSGB 1936 geographic coordinates (EPSG:4277)
+        let osgb = Crs::from_epsg(4277).unwrap();
+        let bng = Crs::from_epsg(27700).unwrap();
+        let p = osgb.point(&bng, [0.5, 50.5]);
+        assert!((p[0] - 577_274.99).abs() < 0.02 && (p[1] - 69_740.50).abs() < 0.02, "{p:?}");
+        // and back
+        let q = bng.point(&osgb, p);
+        assert!((q[0] - 0.5).abs() < 1e-9 && (q[1] - 50.5).abs() < 1e-9, "{q:?}");
+    }
+
+    #[test]
+    fn local_frame_is_metric_at_its_centre() {
+        let wgs = Crs::wgs84();
+        let l = Crs::local(-34.85, -8.0).unwrap();
+        let c = wgs.point(&l, [-34.85, -8.0]);
+        assert!(c[0].abs() < 1e-6 && c[1].abs() < 1e-6);
+        assert!(!l.is_geographic() && wgs.is_geographic());
+        assert_eq!(l.unit_metres(), 1.0);
+    }
+
+    #[test]
+    fn unknown_codes_and_strings_are_refused_with_their_name() {
+        let e = Crs::from_epsg(1).unwrap_err();
+        assert!(e.contains("EPSG:1"), "{e}");
+        let e = Crs::parse("UTM 33").unwrap_err();
+        assert!(e.contains("UTM 33"), "{e}");
+        assert!(Crs::parse("EPSG:32633").is_ok());
+        let e = Crs::parse("EPSG:x").unwrap_err();
+        assert!(e.contains("EPSG:x"), "{e}");
+    }
+}
