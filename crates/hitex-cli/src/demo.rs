@@ -163,7 +163,7 @@ fn terrain_showcase(
     build(BuildArgs {
         image: Some(image),
         bands: "3,2,1".into(),
-        dem: Some(dem),
+        dem: vec![dem],
         procedural: None,
         output: store.clone(),
         shard: (0, 1),

@@ -88,9 +88,10 @@ pub struct SpansArgs {
 /// Arguments of `hitex terrain render`.
 #[derive(Args)]
 pub struct RenderArgs {
-    /// Elevation model: GeoTIFF, SRTM .hgt, ESRI ASCII .asc, numpy .npy/.npz.
-    #[arg(long)]
-    pub dem: PathBuf,
+    /// Elevation model: GeoTIFF, SRTM .hgt, ESRI ASCII .asc, numpy .npy/.npz;
+    /// several files or a folder of them are tiles of one mosaic.
+    #[arg(long, num_args = 1.., required = true)]
+    pub dem: Vec<PathBuf>,
     /// Imagery: a GeoTIFF (reprojected when its CRS is not the DEM's), or
     /// PNG/JPEG with a world file in the DEM's CRS (.pgw/.jgw/.wld; used as
     /// RGB); without it the terrain is coloured by elevation.
@@ -168,6 +169,7 @@ pub(crate) fn world_imagery(
     img.epsg = dem.epsg;
     img.projection = dem.projection;
     img.citation = dem.citation.clone();
+    img.proj4 = dem.proj4.clone();
     check_coregistered(dem, &img, dem_path, path)?;
     let rgb = world_rgb(&img)?;
     Ok((img, rgb))
@@ -238,29 +240,62 @@ pub(crate) fn check_coregistered(
     Ok(())
 }
 
-/// Elevation colours (green lowlands, brown hills, white peaks) as a texture;
-/// heights at or below zero are sea (blue, darker with depth) when the
-/// model also has land, so that a coast reads as one.
 fn hypsometric(heights: &[f32], w: u32, h: u32) -> Result<Image, CliError> {
-    let lo = heights.iter().copied().fold(f32::INFINITY, f32::min);
-    let hi = heights.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-    let sea = lo <= 0.0 && hi > 0.0;
-    let land_lo = if sea { 0.0 } else { lo };
-    let stops = [[40.0, 110.0, 60.0], [150.0, 170.0, 90.0], [140.0, 100.0, 60.0], [245.0, 245.0, 245.0]];
-    let (shallow, deep) = ([70.0f32, 125.0, 175.0], [20.0f32, 50.0, 110.0]);
-    Image::from_fn(w, h, ColorSpace::Srgb, |x, y| {
-        let z = heights[(y * w + x) as usize];
-        if sea && z <= 0.0 {
-            let d = if lo < 0.0 { (z / lo).clamp(0.0, 1.0) } else { 0.0 };
-            let c = |k: usize| (shallow[k] + (deep[k] - shallow[k]) * d) as u8;
-            return [c(0), c(1), c(2), 255];
+    hitex_core::terrain::hypsometric(heights, w, h).map_err(|e| CliError::Input(e.to_string()))
+}
+
+/// The elevation model of `--dem`: one file, or tiles (several files, or
+/// the elevation files of a folder) as one mosaic.
+pub(crate) struct DemInput {
+    /// The raster.
+    pub raster: hitex_io::geotiff::GeoRaster,
+    /// What names it in messages: the file, the folder, or the first tile.
+    pub name: PathBuf,
+    /// The one file it was read from (None for a mosaic).
+    pub file: Option<PathBuf>,
+}
+
+/// Reads `--dem`'s files or folders; several tiles become one mosaic (said
+/// on stdout, with each tile that had to be reprojected).
+pub(crate) fn load_dem_input(paths: &[PathBuf]) -> Result<DemInput, CliError> {
+    let mut files = Vec::new();
+    for p in paths {
+        if p.is_dir() {
+            files.extend(hitex_io::mosaic::dem_files(p)?);
+        } else {
+            files.push(p.clone());
         }
-        let t = ((z - land_lo) / (hi - land_lo).max(1e-6)).clamp(0.0, 1.0) * 2.999;
-        let (i, f) = (t as usize, t.fract());
-        let c = |k: usize| (stops[i][k] + (stops[i + 1][k] - stops[i][k]) * f) as u8;
-        [c(0), c(1), c(2), 255]
-    })
-    .map_err(|e| CliError::Input(e.to_string()))
+    }
+    let name = match (paths, files.as_slice()) {
+        ([one], [_, _, ..]) => one.clone(),
+        (_, [first, rest @ ..]) if !rest.is_empty() => {
+            PathBuf::from(format!("{} (+{} tiles)", first.display(), rest.len()))
+        }
+        (_, [only]) => only.clone(),
+        _ => return Err(CliError::Input("--dem: no elevation file given".into())),
+    };
+    if let [only] = files.as_slice() {
+        return Ok(DemInput { raster: load_dem(only)?, name, file: Some(only.clone()) });
+    }
+    let mut tiles = Vec::with_capacity(files.len());
+    for f in &files {
+        let r = load_elevation(f)?;
+        for w in hitex_io::dem::elevation_warnings(&r) {
+            eprintln!("hitex: warning: {}: {w}", f.display());
+        }
+        tiles.push((r, f.clone()));
+    }
+    let n = tiles.len();
+    let (raster, notes) = hitex_io::mosaic::mosaic(tiles)?;
+    for l in &notes {
+        println!("{l}");
+    }
+    println!("{}: a mosaic of {n} tiles, {}x{} posts", name.display(), raster.width, raster.height);
+    let nodata = |v: f32| !v.is_finite() || raster.nodata.is_some_and(|nd| (v as f64 - nd).abs() < 1e-6);
+    if raster.data.iter().all(|&v| nodata(v)) {
+        return Err(CliError::Input(format!("{}: no elevation sample in any tile", name.display())));
+    }
+    Ok(DemInput { raster, name, file: None })
 }
 
 /// Reads an elevation model, saying on stderr what looks wrong with it.
@@ -309,7 +344,7 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     }
     crate::image_out(&a.output)?;
     let bands = parse_band_list(&a.bands)?;
-    let dem = load_dem(&a.dem)?;
+    let DemInput { raster: dem, name: dem_name, .. } = load_dem_input(&a.dem)?;
     let crs = a
         .crs
         .as_deref()
@@ -319,7 +354,7 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     // imagery: a world file takes the DEM's own CRS (before any reprojection)
     let (image, world) = match &a.image {
         Some(path) if hitex_io::geotiff::is_world_image(path) => {
-            (Some((world_imagery(path, &dem, &a.dem)?.0, path.as_path())), true)
+            (Some((world_imagery(path, &dem, &dem_name)?.0, path.as_path())), true)
         }
         Some(path) => {
             let img = load_geotiff(path)?;
@@ -332,23 +367,25 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     let same = image.as_ref().is_none_or(|(i, _)| dem.same_crs(i));
     let geographic = dem.is_geographic();
     let co = if crs.is_some() || geographic || !same {
-        let co = hitex_io::reproject::co_register(dem, &a.dem, image, crs.as_ref())?;
+        let co = hitex_io::reproject::co_register(dem, &dem_name, image, crs.as_ref())?;
         for n in &co.notes {
             println!("{n}");
         }
         co
     } else {
+        // a CRS in feet keeps its posts in feet: the spacing goes to metres as the heights did
+        let unit_metres = dem.crs().map_or(1.0, |c| c.unit_metres());
         hitex_io::reproject::CoRegistered {
             dem,
             image: image.map(|(i, _)| i),
             crs: None,
-            unit_metres: 1.0,
+            unit_metres,
             notes: Vec::new(),
         }
     };
     let (mut dem, image, unit) = (co.dem, co.image, co.unit_metres);
     if let (Some(img), Some(path)) = (&image, &a.image) {
-        check_coregistered(&dem, img, &a.dem, path)?;
+        check_coregistered(&dem, img, &dem_name, path)?;
     }
     let filled = fill_holes(&mut dem);
     if filled > 0 {
@@ -372,7 +409,7 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     let spacing = [(dem.pixel[0] * unit) as f32, (dem.pixel[1] * unit) as f32];
     let mesh =
         hitex_core::terrain::grid_mesh(&heights, dem.width as usize, dem.height as usize, spacing, a.exaggeration, uv)
-            .map_err(|e| CliError::Input(format!("{}: {e}", a.dem.display())))?;
+            .map_err(|e| CliError::Input(format!("{}: {e}", dem_name.display())))?;
     let mean = heights.iter().map(|&h| h as f64).sum::<f64>() / heights.len() as f64;
     let target = Vec3::new(0.0, mean as f32 * a.exaggeration, 0.0);
     let (p, h) = (a.pitch.to_radians(), a.heading.to_radians());

@@ -27,9 +27,12 @@ pub struct BuildArgs {
     /// Image bands for red, green, blue (1-based).
     #[arg(long, default_value = "3,2,1")]
     pub bands: String,
-    /// Elevation model to check against the imagery (same CRS, overlapping) and keep in the store.
-    #[arg(long)]
-    pub dem: Option<PathBuf>,
+    /// Elevation model kept in the store for relief flights, checked against
+    /// the imagery (reprojected into the imagery's CRS when it is in
+    /// another). Alone (no --image), the store's imagery is the DEM's shaded
+    /// relief, and a geographic DEM moves into a local metric frame.
+    #[arg(long, num_args = 1..)]
+    pub dem: Vec<PathBuf>,
     /// Instead of an image: procedural imagery of WIDTHxHEIGHT texels, generated on the fly.
     #[arg(long, value_parser = parse_big_size)]
     pub procedural: Option<(u32, u32)>,
@@ -146,20 +149,86 @@ fn meta_for(img: &hitex_io::geotiff::GeoRaster, name: &str, path: &Path) -> Resu
     Ok(StoreMeta::for_source(img.width, img.height, img.origin, img.pixel, &crs, name))
 }
 
+/// The DEM a build keeps in its store: the user's file as it is, or a
+/// reprojection of it written as a GeoTIFF.
+enum StoredDem {
+    Copy(PathBuf),
+    Write(Box<(hitex_io::geotiff::GeoRaster, hitex_io::crs::Crs)>),
+}
+
+/// The DEM brought into `crs` (or, without one, into a metric CRS when it
+/// is geographic), saying what was reprojected; with what to store: the
+/// user's one file as it is, else the raster written as a GeoTIFF.
+fn dem_into(
+    dem: crate::terrain_cmd::DemInput,
+    crs: Option<&hitex_io::crs::Crs>,
+) -> Result<(hitex_io::geotiff::GeoRaster, f64, StoredDem, String), CliError> {
+    let co = hitex_io::reproject::co_register(dem.raster, &dem.name, None, crs)?;
+    for n in &co.notes {
+        println!("{n}");
+    }
+    let name = co
+        .crs
+        .as_ref()
+        .map_or_else(String::new, |c| c.epsg().map_or_else(|| c.definition().to_string(), |e| format!("EPSG:{e}")));
+    let stored = match (&dem.file, &co.crs, co.notes.is_empty()) {
+        (Some(f), _, true) => StoredDem::Copy(f.clone()),
+        (_, Some(c), _) => StoredDem::Write(Box::new((co.dem.clone(), c.clone()))),
+        (None, None, _) => {
+            return Err(CliError::Input(format!(
+                "{}: the mosaic's CRS cannot be resolved, so it cannot be stored as a GeoTIFF",
+                dem.name.display()
+            )));
+        }
+        (Some(f), None, false) => StoredDem::Copy(f.clone()),
+    };
+    Ok((co.dem, co.unit_metres, stored, name))
+}
+
+/// A store's imagery from elevations alone: the DEM's shaded relief, at
+/// least 1,024 texels on its longer side (up to 8 texels a post).
+fn relief_source(d: crate::terrain_cmd::DemInput) -> Result<(Box<dyn TileSource>, StoreMeta, StoredDem), CliError> {
+    let name = d.name.clone();
+    let (mut dem, unit, stored, crs) = dem_into(d, None)?;
+    let filled = hitex_io::geotiff::fill_holes(&mut dem);
+    if filled > 0 {
+        println!("filled {filled} missing elevation samples from their neighbours");
+    }
+    let (w, h) = (dem.width, dem.height);
+    let heights: Vec<f32> = (0..w as usize * h as usize).map(|i| dem.data[i * dem.bands]).collect();
+    let k = 1024u32.div_ceil(w.max(h)).clamp(1, 8);
+    let spacing = [dem.pixel[0] * unit, dem.pixel[1] * unit];
+    let img = hitex_core::terrain::shaded_relief(&heights, w, h, spacing, k)
+        .map_err(|e| CliError::Input(format!("{}: {e}", name.display())))?;
+    let name = format!("{} (shaded relief, {k}×{k} texels a post)", name.display());
+    let meta = StoreMeta::for_source(
+        w * k,
+        h * k,
+        dem.origin,
+        [dem.pixel[0] / k as f64, dem.pixel[1] / k as f64],
+        &crs,
+        &name,
+    );
+    let src = MemorySource { width: w * k, height: h * k, rgba: img.bytes().to_vec(), name };
+    Ok((Box::new(src), meta, stored))
+}
+
 pub fn build(a: BuildArgs) -> Result<(), CliError> {
     let t = Instant::now();
+    let dem_in = if a.dem.is_empty() { None } else { Some(crate::terrain_cmd::load_dem_input(&a.dem)?) };
+    let mut stored: Option<StoredDem> = None;
     let (source, meta): (Box<dyn TileSource>, StoreMeta) = match (&a.image, a.procedural) {
         (Some(path), _) if hitex_io::geotiff::is_world_image(path) => {
-            let Some(d) = &a.dem else {
+            let Some(d) = dem_in else {
                 return Err(CliError::Input(format!(
                     "{}: a world file names no CRS; give --dem so that the imagery takes the DEM's",
                     path.display()
                 )));
             };
-            let dem = crate::terrain_cmd::load_dem(d)?;
-            let (img, rgb) = crate::terrain_cmd::world_imagery(path, &dem, d)?;
+            let (img, rgb) = crate::terrain_cmd::world_imagery(path, &d.raster, &d.name)?;
             let name = format!("{} (world file)", path.display());
             let meta = meta_for(&img, &name, path)?;
+            stored = Some(dem_into(d, None)?.2);
             let src = MemorySource { width: img.width, height: img.height, rgba: rgb.bytes().to_vec(), name };
             (Box::new(src) as Box<dyn TileSource>, meta)
         }
@@ -167,9 +236,20 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
             // read by windows: memory stays bounded whatever the file's size
             let tiff = hitex_io::geotiff::GeoTiffWindows::open(path)?;
             let img = tiff.header.clone();
-            if let Some(d) = &a.dem {
-                let dem = crate::terrain_cmd::load_dem(d)?;
-                crate::terrain_cmd::check_coregistered(&dem, &img, d, path)?;
+            if let Some(d) = dem_in {
+                let name = d.name.clone();
+                if d.raster.same_crs(&img) {
+                    crate::terrain_cmd::check_coregistered(&d.raster, &img, &name, path)?;
+                    stored = Some(dem_into(d, None)?.2);
+                } else {
+                    // the DEM moves into the imagery's CRS
+                    let crs = img.crs().map_err(|m| {
+                        CliError::Input(format!("{}: cannot reproject the DEM into it: {m}", path.display()))
+                    })?;
+                    let (dem, _, s, _) = dem_into(d, Some(&crs))?;
+                    crate::terrain_cmd::check_coregistered(&dem, &img, &name, path)?;
+                    stored = Some(s);
+                }
             }
             let bands = crate::terrain_cmd::parse_bands(&a.bands, &img, path)?;
             let name = format!("{} bands {}", path.display(), a.bands);
@@ -181,7 +261,18 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
             let meta = StoreMeta::for_source(w, h, [0.0, 0.0], [1.0, 1.0], "", &src.describe());
             (Box::new(src), meta)
         }
-        (None, None) => return Err(CliError::Input("give --image IMAGE.tif or --procedural WIDTHxHEIGHT".into())),
+        (None, None) => match dem_in {
+            Some(d) => {
+                let (src, meta, s) = relief_source(d)?;
+                stored = Some(s);
+                (src, meta)
+            }
+            None => {
+                return Err(CliError::Input(
+                    "give --image IMAGE.tif, --dem DEM alone, or --procedural WIDTHxHEIGHT".into(),
+                ));
+            }
+        },
     };
     check_build_size(&a, &meta, source.as_ref())?;
     // a store of another source is not overwritten map by map (the shards of
@@ -197,7 +288,7 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
             old.height
         )));
     }
-    if a.dem.is_none()
+    if stored.is_none()
         && let Some(old) = stored_dem(&a.output)
     {
         std::fs::remove_file(&old).map_err(|e| CliError::Input(format!("{}: {e}", old.display())))?;
@@ -225,10 +316,26 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
         }
     })?;
     pb.finish_and_clear();
-    if let Some(d) = &a.dem {
-        let ext = d.extension().and_then(|e| e.to_str()).unwrap_or("tif");
-        let bytes = std::fs::read(d).map_err(|source| hitex_io::IoError::Read { path: d.clone(), source })?;
-        hitex_io::write_atomic(&a.output.join(format!("dem.{ext}")), &bytes)?;
+    if let Some(s) = stored {
+        // one DEM in the store: an earlier build's of another format goes
+        let target = match &s {
+            StoredDem::Copy(d) => {
+                a.output.join(format!("dem.{}", d.extension().and_then(|e| e.to_str()).unwrap_or("tif")))
+            }
+            StoredDem::Write(..) => a.output.join("dem.tif"),
+        };
+        if let Some(old) = stored_dem(&a.output)
+            && old != target
+        {
+            std::fs::remove_file(&old).map_err(|e| CliError::Input(format!("{}: {e}", old.display())))?;
+        }
+        match s {
+            StoredDem::Copy(d) => {
+                let bytes = std::fs::read(&d).map_err(|source| hitex_io::IoError::Read { path: d.clone(), source })?;
+                hitex_io::write_atomic(&target, &bytes)?;
+            }
+            StoredDem::Write(w) => hitex_io::geotiff::write_dem_geotiff(&target, &w.0, &w.1)?,
+        }
     }
     println!(
         "{}: {} levels of {TILE}×{TILE} maps from {}; shard {}/{} wrote {} maps ({} left to other shards{}) in {:.1} s",
@@ -263,7 +370,8 @@ pub struct FlyArgs {
     /// Resident-map budget (the paper's setting needs 324).
     #[arg(long, default_value_t = 400)]
     pub budget: usize,
-    /// Orbit altitude in metres (default: a tenth of the extent).
+    /// Orbit altitude in metres above the datum (default: a tenth of the
+    /// extent above the highest ground, exaggerated).
     #[arg(long, allow_negative_numbers = true)]
     pub altitude: Option<f64>,
     /// Orbit pitch below the horizon, degrees (90 looks straight down).
@@ -403,6 +511,11 @@ impl Relief {
             aircraft: true,
             path,
         }))
+    }
+
+    /// The highest post, metres (before exaggeration).
+    pub fn highest(&self) -> f64 {
+        self.heights.iter().filter(|h| h.is_finite()).fold(0.0f64, |m, &h| m.max(h as f64))
     }
 
     /// Ground height (map texels) under map point (x, y): the nearest post, 0 off the grid.
@@ -586,10 +699,26 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
     let (w, h) = a.size;
     let extent = DVec2::new(meta.width as f64, meta.height as f64);
     let metres = meta.pixel[0];
+    let relief = match a.ground {
+        GroundArg::Flat => None,
+        GroundArg::Auto => Relief::open(&a.store, &meta, a.exaggeration)?,
+        GroundArg::Relief => Some(Relief::open(&a.store, &meta, a.exaggeration)?.ok_or_else(|| {
+            CliError::Input(format!(
+                "{} holds no DEM (dem.*): build it with --dem, or fly --ground flat",
+                a.store.display()
+            ))
+        })?),
+    };
+    let relief = relief.map(|mut r| {
+        r.aircraft = !a.no_aircraft;
+        r
+    });
     let keys = match &a.path {
         Some(p) => load_path(p)?,
         None => {
-            let alt = a.altitude.unwrap_or(extent.x.max(extent.y) * metres / 10.0);
+            // by default a tenth of the extent above the highest ground
+            let top = relief.as_ref().map_or(0.0, |r| r.highest() * a.exaggeration);
+            let alt = a.altitude.unwrap_or(top.max(0.0) + extent.x.max(extent.y) * metres / 10.0);
             if !(alt.is_finite() && alt > 0.0) {
                 return Err(CliError::Input(format!("--altitude {alt}: the camera is below the ground")));
             }
@@ -619,20 +748,6 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
         .map_err(|e| CliError::Input(e.to_string()))?
         .first()
         .map_or(6, |l| l.per_side);
-    let relief = match a.ground {
-        GroundArg::Flat => None,
-        GroundArg::Auto => Relief::open(&a.store, &meta, a.exaggeration)?,
-        GroundArg::Relief => Some(Relief::open(&a.store, &meta, a.exaggeration)?.ok_or_else(|| {
-            CliError::Input(format!(
-                "{} holds no DEM (dem.*): build it with --dem, or fly --ground flat",
-                a.store.display()
-            ))
-        })?),
-    };
-    let relief = relief.map(|mut r| {
-        r.aircraft = !a.no_aircraft;
-        r
-    });
     let sampler = FlySampler::from(a.sampler);
     let mut cache = open_cache(&a.store, &meta, a.budget)?;
     let mut renderer = open_renderer(a.backend.into())?;

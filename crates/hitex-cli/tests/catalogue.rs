@@ -134,15 +134,39 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
     ));
     let f = w("geographic.tif", &georef_tiff(&geo, &geo_keys));
     v.push(c("--crs", "a geographic CRS", &["terrain", "render", "--dem", &f, "--crs", "EPSG:4326", "-o", &out]));
-    let far = [0.0, 0.0, 0.0, 700_000.0, 1_000_000.0, 0.0];
+    let tie_far = [0.0, 0.0, 0.0, 7.5, 46.0, 0.0];
+    let f2 = w("far-tile.tif", &georef_tiff(&[(33922, &tie_far[..]), (33550, &scale[..])], &geo_keys));
+    v.push(c("DEM mosaic", "a tile that touches no other (gap)", &["terrain", "render", "--dem", &f, &f2, "-o", &out]));
+    let coarse = [0.002, 0.002, 0.0];
+    let tie_next = [0.0, 0.0, 0.0, 7.016, 46.0, 0.0];
+    let f2 = w("coarse-tile.tif", &georef_tiff(&[(33922, &tie_next[..]), (33550, &coarse[..])], &geo_keys));
+    v.push(c(
+        "DEM mosaic",
+        "tiles of one CRS at different resolutions",
+        &["terrain", "render", "--dem", &f, &f2, "-o", &out],
+    ));
+    let empty = d.join("no-dems");
+    std::fs::create_dir_all(&empty).unwrap();
+    v.push(c(
+        "DEM mosaic",
+        "a folder without elevation files",
+        &["terrain", "render", "--dem", &s(&empty), "-o", &out],
+    ));
+    // a UTM DEM near 7.7°E 46°N and web-mercator imagery 60 km east of it
+    let utm_tie = [0.0, 0.0, 0.0, 400_000.0, 5_100_000.0, 0.0];
+    let utm = w(
+        "utm-dem.tif",
+        &georef_tiff(&[(33922, &utm_tie[..]), (33550, &[30.0, 30.0, 0.0][..])], &[1024, 0, 1, 1, 3072, 0, 1, 32632]),
+    );
+    let merc_tie = [0.0, 0.0, 0.0, 946_000.0, 5_780_000.0, 0.0];
     let img = w(
         "elsewhere.tif",
-        &georef_tiff(&[(33922, &far), (33550, &[30.0, 30.0, 0.0])], &[1024, 0, 1, 1, 3072, 0, 1, 32632]),
+        &georef_tiff(&[(33922, &merc_tie[..]), (33550, &[30.0, 30.0, 0.0][..])], &[1024, 0, 1, 1, 3072, 0, 1, 3857]),
     );
     v.push(c(
         "GeoTIFF imagery",
         "no overlap with the DEM after reprojection",
-        &["terrain", "render", "--dem", &f, "--image", &img, "--bands", "1,1,1", "-o", &out],
+        &["terrain", "render", "--dem", &utm, "--image", &img, "--bands", "1,1,1", "-o", &out],
     ));
     v.push(c(
         "PNG imagery",

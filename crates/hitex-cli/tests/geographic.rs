@@ -19,18 +19,24 @@ const LAT0: f64 = 46.2;
 /// An int16 geographic DEM (EPSG:4326, PixelIsPoint, GDAL nodata −32768 in a
 /// small block), a hill on a slope.
 fn geographic_dem(path: &Path) {
-    let mut v = Vec::with_capacity((N * N) as usize);
-    for j in 0..N {
-        for i in 0..N {
+    dem_tile(path, 0, 0, N, N);
+}
+
+/// Posts `i0 .. i0 + w`, `j0 .. j0 + h` of [`geographic_dem`] as a tile of their own.
+fn dem_tile(path: &Path, i0: u32, j0: u32, w: u32, h: u32) {
+    let mut v = Vec::with_capacity((w * h) as usize);
+    for j in j0..j0 + h {
+        for i in i0..i0 + w {
             let (x, y) = (i as f64 / N as f64 - 0.5, j as f64 / N as f64 - 0.5);
-            let h = 800.0 + 600.0 * (-(x * x + y * y) * 12.0).exp() + 200.0 * x;
-            v.push(if (100..104).contains(&i) && (60..63).contains(&j) { -32768 } else { h as i16 });
+            let z = 800.0 + 600.0 * (-(x * x + y * y) * 12.0).exp() + 200.0 * x;
+            v.push(if (100..104).contains(&i) && (60..63).contains(&j) { -32768 } else { z as i16 });
         }
     }
+    let (lon, lat) = (LON0 + i0 as f64 * STEP, LAT0 - j0 as f64 * STEP);
     let mut enc = TiffEncoder::new(std::fs::File::create(path).unwrap()).unwrap();
-    let mut img = enc.new_image::<colortype::GrayI16>(N, N).unwrap();
+    let mut img = enc.new_image::<colortype::GrayI16>(w, h).unwrap();
     img.encoder().write_tag(Tag::ModelPixelScaleTag, &[STEP, STEP, 0.0][..]).unwrap();
-    img.encoder().write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, LON0, LAT0, 0.0][..]).unwrap();
+    img.encoder().write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, lon, lat, 0.0][..]).unwrap();
     let keys: [u16; 16] = [1, 1, 0, 3, 1024, 0, 1, 2, 1025, 0, 1, 2, 2048, 0, 1, 4326];
     img.encoder().write_tag(Tag::GeoKeyDirectoryTag, &keys[..]).unwrap();
     img.encoder().write_tag(Tag::GdalNodata, "-32768").unwrap();
@@ -168,4 +174,126 @@ fn crs_mistakes_get_one_line_each() {
         assert!(e.len() == 1 && e[0].contains(says), "--crs {crs}: {e:?}");
     }
     assert!(!out.exists());
+}
+
+/// Frames in `dir` that show terrain (not all sky).
+fn frames_with_ground(dir: &Path) -> usize {
+    std::fs::read_dir(dir).unwrap().flatten().filter(|e| covered(&e.path()) > 0.2).count()
+}
+
+#[test]
+fn a_geographic_dem_alone_builds_a_store_and_flies() {
+    let d = tmp("geographic-store");
+    let (dem, store, frames) = (d.join("dem.tif"), d.join("store"), d.join("frames"));
+    geographic_dem(&dem);
+    let o = hitex(&["terrain", "build", "--dem", dem.to_str().unwrap(), "-o", store.to_str().unwrap()]);
+    let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "{stdout}{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        stdout.contains("reprojected from EPSG:4326 to a local metric frame") && stdout.contains("shaded relief"),
+        "{stdout}"
+    );
+    // the store keeps the reprojected DEM, its CRS written as user-defined GeoKeys
+    let kept = hitex_io::geotiff::load_geotiff(&store.join("dem.tif")).unwrap();
+    let crs = kept.crs().unwrap();
+    assert!(!crs.is_geographic() && crs.name().starts_with("a local metric frame"), "{crs:?}");
+    assert!((kept.pixel[0] - 64.4).abs() < 0.5 && (kept.pixel[1] - 92.6).abs() < 0.5, "{:?}", kept.pixel);
+    let o = hitex(&[
+        "terrain",
+        "fly",
+        store.to_str().unwrap(),
+        "--frames",
+        "2",
+        "--size",
+        "96x64",
+        "--wait",
+        "--backend",
+        "cpu",
+        "--pitch",
+        "35",
+        "-o",
+        frames.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(frames_with_ground(&frames), 2);
+}
+
+#[test]
+fn a_geographic_dem_under_utm_imagery_builds_with_the_dem_in_the_imagery_crs() {
+    let d = tmp("geographic-store-pair");
+    let (dem, img, store, frames) = (d.join("dem.tif"), d.join("img.tif"), d.join("store"), d.join("frames"));
+    geographic_dem(&dem);
+    utm_imagery(&img);
+    let o = hitex(&[
+        "terrain",
+        "build",
+        "--image",
+        img.to_str().unwrap(),
+        "--bands",
+        "1,2,3",
+        "--dem",
+        dem.to_str().unwrap(),
+        "-o",
+        store.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "{stdout}{}", String::from_utf8_lossy(&o.stderr));
+    assert!(stdout.contains("reprojected from EPSG:4326 to EPSG:32632"), "{stdout}");
+    let kept = hitex_io::geotiff::load_geotiff(&store.join("dem.tif")).unwrap();
+    assert_eq!(kept.epsg, Some(32632));
+    let o = hitex(&[
+        "terrain",
+        "fly",
+        store.to_str().unwrap(),
+        "--frames",
+        "2",
+        "--size",
+        "96x64",
+        "--wait",
+        "--backend",
+        "cpu",
+        "--pitch",
+        "35",
+        "-o",
+        frames.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(frames_with_ground(&frames), 2);
+}
+
+#[test]
+fn four_tiles_render_as_the_dem_they_were_cut_from() {
+    let d = tmp("geographic-mosaic");
+    let tiles = d.join("tiles");
+    std::fs::create_dir_all(&tiles).unwrap();
+    // 2×2 tiles sharing their edge posts, as adjacent SRTM tiles do
+    let half = N / 2;
+    for (name, i0, j0) in [("nw", 0, 0), ("ne", half, 0), ("sw", 0, half), ("se", half, half)] {
+        dem_tile(&tiles.join(format!("{name}.tif")), i0, j0, half + 1, half + 1);
+    }
+    let whole = d.join("whole.tif");
+    geographic_dem(&whole);
+    let render = |dem: &[&str], out: &Path| {
+        let mut args = vec!["terrain", "render", "--dem"];
+        args.extend_from_slice(dem);
+        let o = out.to_str().unwrap();
+        args.extend_from_slice(&["-o", o, "--size", "160x120", "--backend", "cpu"]);
+        let o = hitex(&args);
+        let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(o.status.success(), "{stdout}{}", String::from_utf8_lossy(&o.stderr));
+        stdout
+    };
+    let (a, b, c) = (d.join("whole.png"), d.join("folder.png"), d.join("files.png"));
+    render(&[whole.to_str().unwrap()], &a);
+    let said = render(&[tiles.to_str().unwrap()], &b);
+    assert!(said.contains("a mosaic of 4 tiles, 241x241 posts"), "{said}");
+    let names: Vec<String> = ["se", "nw", "sw", "ne"]
+        .iter()
+        .map(|n| tiles.join(format!("{n}.tif")).to_string_lossy().into_owned())
+        .collect();
+    let names: Vec<&str> = names.iter().map(|s| s.as_str()).collect();
+    render(&names, &c);
+    let (pa, pb, pc) = (std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap(), std::fs::read(&c).unwrap());
+    assert!(pa == pb, "the mosaic of the folder renders otherwise than the whole DEM");
+    assert!(pa == pc, "the mosaic of the files, in any order, renders otherwise than the whole DEM");
 }

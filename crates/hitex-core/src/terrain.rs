@@ -3,6 +3,7 @@
 
 use crate::CoreError;
 use crate::scene::Mesh;
+use crate::texture::{ColorSpace, Image};
 use glam::{Vec2, Vec3};
 
 /// Maps needed at one MIP level of the geospecific texture.
@@ -237,6 +238,86 @@ pub fn lod_mesh(heights: &[f32], w: usize, h: usize, o: &LodOptions) -> Result<L
         }
     }
     Ok(m)
+}
+
+/// Elevation colours (green lowlands, brown hills, white peaks) as a texture;
+/// heights at or below zero are sea (blue, darker with depth) when the
+/// model also has land, so that a coast reads as one.
+pub fn hypsometric(heights: &[f32], w: u32, h: u32) -> Result<Image, CoreError> {
+    let lo = heights.iter().copied().fold(f32::INFINITY, f32::min);
+    let hi = heights.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    let sea = lo <= 0.0 && hi > 0.0;
+    let land_lo = if sea { 0.0 } else { lo };
+    let stops = [[40.0, 110.0, 60.0], [150.0, 170.0, 90.0], [140.0, 100.0, 60.0], [245.0, 245.0, 245.0]];
+    let (shallow, deep) = ([70.0f32, 125.0, 175.0], [20.0f32, 50.0, 110.0]);
+    Image::from_fn(w, h, ColorSpace::Srgb, |x, y| {
+        let z = heights[(y * w + x) as usize];
+        if sea && z <= 0.0 {
+            let d = if lo < 0.0 { (z / lo).clamp(0.0, 1.0) } else { 0.0 };
+            let c = |k: usize| (shallow[k] + (deep[k] - shallow[k]) * d) as u8;
+            return [c(0), c(1), c(2), 255];
+        }
+        let t = ((z - land_lo) / (hi - land_lo).max(1e-6)).clamp(0.0, 1.0) * 2.999;
+        let (i, f) = (t as usize, t.fract());
+        let c = |k: usize| (stops[i][k] + (stops[i + 1][k] - stops[i][k]) * f) as u8;
+        [c(0), c(1), c(2), 255]
+    })
+}
+
+/// A shaded relief of a DEM, `k`×`k` texels a post: the elevation colours
+/// of [`hypsometric`] on heights interpolated bilinearly between posts,
+/// lit by a sun in the north-west 45° above the horizon (the cartographic
+/// convention) with a third of ambient light. `spacing` is the post
+/// spacing (x, y) in the heights' unit, so that slopes are true. For a
+/// store built from elevations alone, which a flight then drapes over the
+/// same DEM.
+pub fn shaded_relief(heights: &[f32], w: u32, h: u32, spacing: [f64; 2], k: u32) -> Result<Image, CoreError> {
+    if heights.len() != w as usize * h as usize || w == 0 || h == 0 || k == 0 {
+        return Err(CoreError::OutOfRange {
+            key: "shaded relief".into(),
+            message: format!("{} heights for {w}×{h} posts at {k} texels a post", heights.len()),
+        });
+    }
+    let colours = hypsometric(heights, w, h)?;
+    let at = |x: f64, y: f64| -> f64 {
+        let (x, y) = (x.clamp(0.0, (w - 1) as f64), y.clamp(0.0, (h - 1) as f64));
+        let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+        let (x1, y1) = ((x0 + 1).min(w as usize - 1), (y0 + 1).min(h as usize - 1));
+        let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+        let v = |i: usize, j: usize| heights[j * w as usize + i] as f64;
+        let top = v(x0, y0) + (v(x1, y0) - v(x0, y0)) * fx;
+        let bot = v(x0, y1) + (v(x1, y1) - v(x0, y1)) * fx;
+        top + (bot - top) * fy
+    };
+    let colour = |x: f64, y: f64| -> [f64; 3] {
+        let (x, y) = (x.clamp(0.0, (w - 1) as f64), y.clamp(0.0, (h - 1) as f64));
+        let (x0, y0) = (x.floor() as u32, y.floor() as u32);
+        let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+        let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+        let c = |i: u32, j: u32, ch: usize| colours.texel(i, j)[ch] as f64;
+        std::array::from_fn(|ch| {
+            let top = c(x0, y0, ch) + (c(x1, y0, ch) - c(x0, y0, ch)) * fx;
+            let bot = c(x0, y1, ch) + (c(x1, y1, ch) - c(x0, y1, ch)) * fx;
+            top + (bot - top) * fy
+        })
+    };
+    // towards the sun: north-west (rows run south), 45° up
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    let sun = [-0.5, 0.5, s];
+    Image::from_fn(w * k, h * k, ColorSpace::Srgb, |tx, ty| {
+        let (x, y) = ((tx as f64 + 0.5) / k as f64 - 0.5, (ty as f64 + 0.5) / k as f64 - 0.5);
+        // slopes east and north over one post
+        let dzdx = (at(x + 0.5, y) - at(x - 0.5, y)) / spacing[0];
+        let dzdy = (at(x, y - 0.5) - at(x, y + 0.5)) / spacing[1];
+        let n = [-dzdx, -dzdy, 1.0];
+        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let lit = ((n[0] * sun[0] + n[1] * sun[1] + n[2] * sun[2]) / len).max(0.0);
+        // flat ground keeps its colour: shade relative to a level surface
+        let shade = (1.0 / 3.0 + 2.0 / 3.0 * lit) / (1.0 / 3.0 + 2.0 / 3.0 * s);
+        let c = colour(x, y);
+        let q = |v: f64| (v * shade).round().clamp(0.0, 255.0) as u8;
+        [q(c[0]), q(c[1]), q(c[2]), 255]
+    })
 }
 
 #[cfg(test)]

@@ -66,8 +66,35 @@ impl Crs {
         if !(lon.is_finite() && lat.is_finite() && lat.abs() < 90.0) {
             return Err(format!("no local frame at longitude {lon}°, latitude {lat}°"));
         }
-        let def = format!("+proj=tmerc +lat_0={lat:.9} +lon_0={lon:.9} +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m");
-        Self::from_definition(&def, &format!("a local metric frame at {lat:.4}°, {lon:.4}°"))
+        // rounded as the definition states them, so that a frame read back from GeoKeys is equal
+        let (lon, lat) = ((lon * 1e9).round() / 1e9, (lat * 1e9).round() / 1e9);
+        Self::from_definition(&tm_definition(lon, lat, 1.0, 0.0, 0.0), &local_name(lon, lat))
+    }
+
+    /// The parameters (central meridian, latitude of origin, scale, false
+    /// easting, false northing) of a transverse Mercator on WGS 84 in metres
+    /// made by [`Crs::local`] or read from user-defined GeoKeys.
+    pub fn transverse_mercator(&self) -> Option<[f64; 5]> {
+        let rest = self.definition.strip_prefix("+proj=tmerc ")?;
+        let mut v = [f64::NAN, f64::NAN, 1.0, 0.0, 0.0];
+        for part in rest.split_whitespace() {
+            let (k, val) = match part.split_once('=') {
+                Some(kv) => kv,
+                None => continue,
+            };
+            let slot = match k {
+                "+lon_0" => 0,
+                "+lat_0" => 1,
+                "+k" => 2,
+                "+x_0" => 3,
+                "+y_0" => 4,
+                "+datum" if val == "WGS84" => continue,
+                "+units" if val == "m" => continue,
+                _ => return None,
+            };
+            v[slot] = val.parse().ok()?;
+        }
+        v.iter().all(|x| x.is_finite()).then_some(v)
     }
 
     /// WGS 84 longitude, latitude (degrees).
@@ -128,10 +155,29 @@ impl Crs {
     }
 }
 
+/// The PROJ.4 definition of a transverse Mercator on WGS 84 in metres.
+pub(crate) fn tm_definition(lon: f64, lat: f64, k: f64, fe: f64, fn_: f64) -> String {
+    format!("+proj=tmerc +lat_0={lat:.9} +lon_0={lon:.9} +k={k} +x_0={fe} +y_0={fn_} +datum=WGS84 +units=m")
+}
+
+fn local_name(lon: f64, lat: f64) -> String {
+    format!("a local metric frame at {lat:.4}°, {lon:.4}°")
+}
+
 impl GeoRaster {
     /// The raster's CRS through the coordinate library: its EPSG code, or
     /// the UTM zone a user-defined projection code names.
     pub fn crs(&self) -> Result<Crs, String> {
+        if let Some(def) = &self.proj4 {
+            let crs = Crs::from_definition(def, self.citation.as_deref().unwrap_or(def))?;
+            // a local frame keeps its name
+            return Ok(match crs.transverse_mercator() {
+                Some([lon, lat, k, fe, fn_]) if k == 1.0 && fe == 0.0 && fn_ == 0.0 => {
+                    Crs { name: local_name(lon, lat), ..crs }
+                }
+                _ => crs,
+            });
+        }
         match (self.epsg, self.utm_zone()) {
             (Some(c), _) if c != 32767 => Crs::from_epsg(c),
             (_, Some(z)) => Crs::from_definition(

@@ -69,6 +69,7 @@ fn plain(w: u32, h: u32, data: Vec<f32>) -> GeoRaster {
         epsg: None,
         projection: None,
         citation: None,
+        proj4: None,
     }
 }
 
@@ -112,6 +113,7 @@ pub fn parse_hgt(bytes: &[u8], name: &str) -> Result<GeoRaster, String> {
         epsg: Some(4326),
         projection: None,
         citation: Some("WGS 84 geographic".into()),
+        proj4: None,
     })
 }
 
@@ -178,6 +180,7 @@ pub fn parse_ascii_grid(text: &str) -> Result<GeoRaster, String> {
         epsg: None,
         projection: None,
         citation: None,
+        proj4: None,
     })
 }
 

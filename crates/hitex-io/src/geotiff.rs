@@ -35,6 +35,10 @@ pub struct GeoRaster {
     pub projection: Option<u16>,
     /// The GeoTIFF citation (GeoAsciiParams), if any.
     pub citation: Option<String>,
+    /// A PROJ.4 definition of a CRS that no EPSG code names: a user-defined
+    /// transverse Mercator read from the GeoKeys, or a reprojection's
+    /// local frame.
+    pub proj4: Option<String>,
 }
 
 impl GeoRaster {
@@ -77,17 +81,101 @@ impl GeoRaster {
         }
     }
 
-    /// Whether both rasters are in the same coordinate reference system (the
-    /// same UTM zone, the same EPSG code, or the same citation).
+    /// Whether both rasters are in the same coordinate reference system: the
+    /// same UTM zone (whatever the datum: they differ by less than a metre),
+    /// else the same definition in the coordinate library, else the same
+    /// EPSG code, else (neither names one) the same citation.
     pub fn same_crs(&self, other: &GeoRaster) -> bool {
-        match (self.utm_zone(), other.utm_zone()) {
-            (Some(a), Some(b)) => a == b,
-            _ => match (self.epsg, other.epsg) {
-                (Some(a), Some(b)) if a != 32767 && b != 32767 => a == b,
-                _ => self.citation == other.citation,
-            },
+        if let (Some(a), Some(b)) = (self.utm_zone(), other.utm_zone()) {
+            return a == b;
+        }
+        if let (Ok(a), Ok(b)) = (self.crs(), other.crs()) {
+            return a == b;
+        }
+        match (self.epsg, other.epsg) {
+            (Some(a), Some(b)) if a != 32767 && b != 32767 => a == b,
+            _ => self.citation == other.citation && self.proj4 == other.proj4,
         }
     }
+}
+
+/// GeoKeys of a user-defined transverse Mercator on WGS 84
+/// (ProjectedCSType and Projection user-defined, ProjCoordTrans 1), as a
+/// PROJ.4 definition: the form in which [`write_dem_geotiff`] stores a local
+/// metric frame. Other user-defined projections give None.
+fn user_defined_tm(keys: &[u16], doubles: &[f64]) -> Option<String> {
+    let entry = |id: u16| keys.chunks_exact(4).skip(1).find(|k| k[0] == id);
+    let short = |id: u16| entry(id).filter(|k| k[1] == 0).map(|k| k[3]);
+    let double =
+        |id: u16| entry(id).filter(|k| k[1] == 34736 && k[2] == 1).and_then(|k| doubles.get(k[3] as usize).copied());
+    if short(3072) != Some(32767) || short(3074) != Some(32767) || short(3075) != Some(1) {
+        return None;
+    }
+    if !matches!(short(2048), Some(4326) | None) || !matches!(short(3076), Some(9001) | None) {
+        return None;
+    }
+    let (lon, lat) = (double(3080)?, double(3081)?);
+    let (fe, fn_, k) = (double(3082).unwrap_or(0.0), double(3083).unwrap_or(0.0), double(3092).unwrap_or(1.0));
+    if ![lon, lat, fe, fn_, k].iter().all(|v| v.is_finite()) || k <= 0.0 || lat.abs() >= 90.0 {
+        return None;
+    }
+    Some(crate::crs::tm_definition(lon, lat, k, fe, fn_))
+}
+
+/// Writes band 1 of `r` (an elevation model) as a float GeoTIFF in `crs`,
+/// atomically: north-up tiepoint and pixel scale, the CRS as its EPSG code
+/// or, for a local transverse Mercator, as user-defined GeoKeys; nodata as
+/// GDAL_NODATA.
+pub fn write_dem_geotiff(path: &Path, r: &GeoRaster, crs: &crate::crs::Crs) -> Result<(), IoError> {
+    use tiff::encoder::{TiffEncoder, colortype::Gray32Float};
+    let werr = |m: String| IoError::Write { path: path.to_path_buf(), message: m };
+    let mut keys: Vec<u16> = Vec::new();
+    let mut doubles: Vec<f64> = Vec::new();
+    let geographic = crs.is_geographic();
+    // the CRS's name as the citation (GTCitationGeoKey in GeoAsciiParams)
+    let citation: String = crs.name().replace('°', " deg").chars().filter(|c| c.is_ascii() && *c != '|').collect();
+    let citation = format!("{citation}|");
+    let cite_len = u16::try_from(citation.len()).map_err(|_| werr("the CRS's name is too long".into()))?;
+    keys.extend_from_slice(&[1024, 0, 1, if geographic { 2 } else { 1 }, 1025, 0, 1, 1, 1026, 34737, cite_len, 0]);
+    match (crs.epsg(), crs.transverse_mercator()) {
+        (Some(c), _) => keys.extend_from_slice(&[if geographic { 2048 } else { 3072 }, 0, 1, c]),
+        (None, Some([lon, lat, k, fe, fn_])) => {
+            keys.extend_from_slice(&[
+                2048, 0, 1, 4326, 3072, 0, 1, 32767, 3074, 0, 1, 32767, 3075, 0, 1, 1, 3076, 0, 1, 9001,
+            ]);
+            for (id, v) in [(3080u16, lon), (3081, lat), (3082, fe), (3083, fn_), (3092, k)] {
+                keys.extend_from_slice(&[id, 34736, 1, doubles.len() as u16]);
+                doubles.push(v);
+            }
+        }
+        (None, None) => {
+            return Err(werr(format!(
+                "{} has no EPSG code and is no transverse Mercator: GeoKeys cannot name it",
+                crs.name()
+            )));
+        }
+    }
+    let mut dir = vec![1u16, 1, 0, (keys.len() / 4) as u16];
+    dir.extend_from_slice(&keys);
+    let band: Vec<f32> = (0..r.width as usize * r.height as usize).map(|i| r.data[i * r.bands]).collect();
+    let mut buf = std::io::Cursor::new(Vec::new());
+    let encode = |buf: &mut std::io::Cursor<Vec<u8>>| -> Result<(), tiff::TiffError> {
+        let mut enc = TiffEncoder::new(buf)?;
+        let mut img = enc.new_image::<Gray32Float>(r.width, r.height)?;
+        img.encoder().write_tag(Tag::ModelPixelScaleTag, &[r.pixel[0], r.pixel[1], 0.0][..])?;
+        img.encoder().write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, r.origin[0], r.origin[1], 0.0][..])?;
+        img.encoder().write_tag(Tag::GeoKeyDirectoryTag, &dir[..])?;
+        if !doubles.is_empty() {
+            img.encoder().write_tag(Tag::GeoDoubleParamsTag, &doubles[..])?;
+        }
+        img.encoder().write_tag(Tag::GeoAsciiParamsTag, &*citation)?;
+        if let Some(n) = r.nodata.filter(|n| n.is_finite()) {
+            img.encoder().write_tag(Tag::GdalNodata, &*format!("{n}"))?;
+        }
+        img.write_data(&band)
+    };
+    encode(&mut buf).map_err(|e| werr(e.to_string()))?;
+    crate::write_atomic(path, &buf.into_inner())
 }
 
 /// Reads a GeoTIFF; errors name the file.
@@ -181,9 +269,10 @@ fn read_header<R: Read + Seek>(
     let nodata =
         d.get_tag_ascii_string(Tag::GdalNodata).ok().and_then(|s| s.trim().trim_end_matches('\0').parse::<f64>().ok());
     // ProjectedCSTypeGeoKey, or GeographicTypeGeoKey for a geographic model (GTModelTypeGeoKey 2)
-    let geographic = key(1024) == Some(2) || (key(1024).is_none() && key(3072).is_none());
+    let geographic = key(1024) == Some(2) || (key(1024).is_none() && key(3072).is_none() && key(3074).is_none());
     let epsg = key(3072).or_else(|| key(2048).filter(|_| geographic));
     let projection = key(3074);
+    let proj4 = user_defined_tm(&keys, &d.get_tag_f64_vec(Tag::GeoDoubleParamsTag).unwrap_or_default());
     // VerticalUnitsGeoKey: heights in feet come back in metres
     let z_scale = match key(4099) {
         None | Some(9001) | Some(32767) => 1.0,
@@ -208,6 +297,7 @@ fn read_header<R: Read + Seek>(
         epsg,
         projection,
         citation,
+        proj4,
     };
     Ok((r, z_scale))
 }
@@ -444,6 +534,7 @@ pub fn load_world_image(path: &Path) -> Result<GeoRaster, IoError> {
         epsg: None,
         projection: None,
         citation: None,
+        proj4: None,
     })
 }
 
@@ -525,6 +616,7 @@ mod tests {
             epsg: None,
             projection: None,
             citation: None,
+            proj4: None,
         };
         assert_eq!(fill_holes(&mut r), 2);
         assert!((r.data[4] - 1.5).abs() < 1e-6, "{}", r.data[4]);

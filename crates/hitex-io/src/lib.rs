@@ -22,6 +22,7 @@ pub mod iges;
 pub mod image_io;
 pub mod limits;
 pub mod models;
+pub mod mosaic;
 pub mod nurbs_json;
 pub mod obj;
 pub mod obj_freeform;

@@ -185,7 +185,8 @@ pub fn reproject(src: &GeoRaster, from: &Crs, to: &Crs, dst: &Grid, epsg: Option
     data.par_chunks_mut(dst.width as usize * b).enumerate().for_each(|(j, row)| {
         let pos = source_positions(dst, &sg, &to_src, j);
         for (i, p) in pos.iter().enumerate() {
-            if !(p[0] > -1.0 && p[1] > -1.0 && p[0] < sw as f64 && p[1] < sh as f64) {
+            // the source's edge lies half a pixel beyond its outer pixel centres
+            if !(p[0] >= -0.5 && p[1] >= -0.5 && p[0] <= sw as f64 - 0.5 && p[1] <= sh as f64 - 0.5) {
                 continue;
             }
             let (x0, y0) = (p[0].floor(), p[1].floor());
@@ -223,6 +224,7 @@ pub fn reproject(src: &GeoRaster, from: &Crs, to: &Crs, dst: &Grid, epsg: Option
         epsg,
         projection: None,
         citation: Some(to.name().to_string()),
+        proj4: epsg.is_none().then(|| to.definition().to_string()),
     }
 }
 
@@ -280,13 +282,15 @@ pub fn co_register(
         ));
     }
     let mut notes = Vec::new();
-    let max_pixels = crate::geotiff::MAX_SAMPLES;
+    let max_pixels = crate::geotiff::MAX_SAMPLES / dem.bands.max(1) as u64;
     // imagery that names the DEM's own CRS (the same EPSG code or UTM zone) stays as it is
     let image_in_place = |img: &GeoRaster, t: &Crs| img.same_crs(&dem) && dem_crs.as_ref().is_ok_and(|d| d == t);
     let image_in_place = image.as_ref().zip(target.as_ref()).is_some_and(|((i, _), t)| image_in_place(i, t));
     let dem = match (&target, &dem_crs) {
         (Some(t), Ok(d)) if t != d => {
             let grid = covering_grid(&dem, d, t, max_pixels).map_err(|m| err(dem_path, m))?;
+            let bytes = grid.width as u64 * grid.height as u64 * dem.bands as u64 * 4;
+            crate::limits::check_cap("the reprojected DEM", Some(bytes)).map_err(|m| err(dem_path, m))?;
             let r = reproject(&dem, d, t, &grid, t.epsg());
             notes.push(format!(
                 "{}: reprojected from {} to {} ({}×{} posts at {:.2} × {:.2} m)",
@@ -334,6 +338,8 @@ pub fn co_register(
                         ),
                     ));
                 }
+                let bytes = grid.width as u64 * grid.height as u64 * img.bands as u64 * 4;
+                crate::limits::check_cap("the reprojected imagery", Some(bytes)).map_err(|m| err(path, m))?;
                 let r = reproject(&img, &ic, t, &grid, t.epsg());
                 notes.push(format!(
                     "{}: reprojected from {} to {} ({}×{} pixels over the DEM)",
@@ -450,6 +456,7 @@ mod tests {
             epsg: Some(4326),
             projection: None,
             citation: None,
+            proj4: None,
         }
     }
 
@@ -502,5 +509,34 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn dems_written_in_a_local_frame_or_an_epsg_crs_read_back_the_same() {
+        let d = std::env::temp_dir().join(format!("hitex-dem-roundtrip-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let src = geographic(40, 30, |lon, lat| 100.0 * lon + lat);
+        for to in [Crs::local(7.0, 46.0).unwrap(), Crs::from_epsg(32632).unwrap()] {
+            let grid = covering_grid(&src, &Crs::wgs84(), &to, 1 << 20).unwrap();
+            let mut r = reproject(&src, &Crs::wgs84(), &to, &grid, to.epsg());
+            r.nodata = Some(-9999.0);
+            r.data.iter_mut().filter(|v| v.is_nan()).for_each(|v| *v = -9999.0);
+            let path = d.join("dem.tif");
+            crate::geotiff::write_dem_geotiff(&path, &r, &to).unwrap();
+            let back = crate::geotiff::load_geotiff(&path).unwrap();
+            assert_eq!((back.width, back.height, back.origin, back.pixel), (r.width, r.height, r.origin, r.pixel));
+            assert_eq!(back.data, r.data);
+            assert_eq!(back.nodata, Some(-9999.0));
+            let crs = back.crs().unwrap();
+            assert!(crs == to, "{crs:?} read back for {to:?}");
+            assert_eq!(crs.name(), to.name());
+        }
+        // a CRS that GeoKeys cannot name is refused, nothing written
+        let lcc =
+            Crs::from_definition("+proj=lcc +lat_1=45 +lat_2=47 +lon_0=7 +datum=WGS84 +units=m", "a conic").unwrap();
+        let path = d.join("lcc.tif");
+        let e = crate::geotiff::write_dem_geotiff(&path, &src, &lcc).unwrap_err().to_string();
+        assert!(e.contains("a conic") && !path.exists(), "{e}");
+        std::fs::remove_dir_all(&d).ok();
     }
 }
