@@ -252,3 +252,46 @@ fn png_imagery_with_a_world_file_builds_and_renders() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("do not overlap"), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// Every file below `dir` with its bytes, by path relative to `dir`.
+fn files_of(dir: &std::path::Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+    let mut all = Vec::new();
+    common::walk(dir, &mut all);
+    all.into_iter()
+        .map(|p| {
+            let rel = std::path::Path::new(&p).strip_prefix(dir).unwrap().to_string_lossy().into_owned();
+            (rel, std::fs::read(&p).unwrap())
+        })
+        .collect()
+}
+
+#[test]
+fn shards_run_at_the_same_time_build_the_store_of_one_process() {
+    let d = tmp("store-concurrent");
+    let (one, many) = (d.join("one"), d.join("many"));
+    let o = hitex(&["terrain", "build", "--procedural", "3000x2000", "-o", one.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // four processes at once into one folder, as an array job runs them
+    let n = 4;
+    let children: Vec<_> = (0..n)
+        .map(|i| {
+            std::process::Command::new(env!("CARGO_BIN_EXE_hitex"))
+                .args(["terrain", "build", "--procedural", "3000x2000", "-o", many.to_str().unwrap()])
+                .args(["--shard", &format!("{i}/{n}")])
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for c in children {
+        let o = c.wait_with_output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let (a, b) = (files_of(&one), files_of(&many));
+    assert!(a.len() > 20, "{} files", a.len());
+    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>(), "the same files, no temporaries left");
+    for (name, bytes) in &a {
+        assert!(bytes == &b[name], "{name} differs between the single and the concurrent build");
+    }
+}
