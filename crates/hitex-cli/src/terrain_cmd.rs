@@ -392,6 +392,17 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
         let why = if co.notes.is_empty() { "" } else { " (nodata, or outside the source after reprojection)" };
         println!("filled {filled} missing elevation samples from their neighbours{why}");
     }
+    // no more posts than the picture can show: a 1″ tile is 13 M posts for a 0.8 M-pixel view
+    let (posts, cap) = (dem.width as u64 * dem.height as u64, (4 * a.size.0 as u64 * a.size.1 as u64).max(1 << 20));
+    if posts > cap {
+        let k = ((posts as f64 / cap as f64).sqrt().ceil() as u32).max(2);
+        let (w0, h0) = (dem.width, dem.height);
+        dem = hitex_io::geotiff::decimated(&dem, k);
+        println!(
+            "meshed {}x{} posts (the means of {k}x{k} blocks): the DEM's {w0}x{h0} are more than 4 a pixel of {}x{}",
+            dem.width, dem.height, a.size.0, a.size.1
+        );
+    }
     let heights: Vec<f32> = (0..dem.width * dem.height).map(|i| dem.data[i as usize * dem.bands]).collect();
     let (pyramid, image_extent) = match &image {
         Some(img) if world => (MipPyramid::build(world_rgb(img)?), img.extent()),

@@ -178,6 +178,43 @@ pub fn write_dem_geotiff(path: &Path, r: &GeoRaster, crs: &crate::crs::Crs) -> R
     crate::write_atomic(path, &buf.into_inner())
 }
 
+/// Band 1 of `r` on a grid `k` times coarser: each post the mean of the
+/// valid samples of a `k`×`k` block (nodata where the block has none); a
+/// partial block at the east or south edge is dropped, so that every post
+/// sits at its block's centre.
+pub fn decimated(r: &GeoRaster, k: u32) -> GeoRaster {
+    let k = k.max(1);
+    let (w, h) = ((r.width / k).max(1), (r.height / k).max(1));
+    let valid = |v: f32| v.is_finite() && r.nodata.is_none_or(|n| (v as f64 - n).abs() >= 1e-6);
+    let hole = r.nodata.map_or(f32::NAN, |n| n as f32);
+    let mut data = Vec::with_capacity(w as usize * h as usize);
+    for j in 0..h {
+        for i in 0..w {
+            let (mut sum, mut n) = (0.0f64, 0u32);
+            for y in j * k..((j + 1) * k).min(r.height) {
+                for x in i * k..((i + 1) * k).min(r.width) {
+                    let v = r.get(x, y, 0);
+                    if valid(v) {
+                        sum += v as f64;
+                        n += 1;
+                    }
+                }
+            }
+            data.push(if n > 0 { (sum / n as f64) as f32 } else { hole });
+        }
+    }
+    GeoRaster {
+        width: w,
+        height: h,
+        bands: 1,
+        data,
+        pixel: [r.pixel[0] * k as f64, r.pixel[1] * k as f64],
+        proj4: r.proj4.clone(),
+        citation: r.citation.clone(),
+        ..*r
+    }
+}
+
 /// Reads a GeoTIFF; errors name the file.
 pub fn load_geotiff(path: &Path) -> Result<GeoRaster, IoError> {
     let file = std::fs::File::open(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
@@ -601,6 +638,29 @@ mod tests {
         assert_eq!(dem.origin, img.origin);
         assert!((dem.pixel[0] - 90.0).abs() < 0.1 && (img.pixel[0] - 28.5).abs() < 0.1);
         assert!(dem.data.iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn decimation_averages_blocks_and_keeps_their_centres() {
+        let r = GeoRaster {
+            width: 5,
+            height: 4,
+            bands: 1,
+            data: (0..20).map(|i| if i == 6 { -9999.0 } else { i as f32 }).collect(),
+            origin: [100.0, 50.0],
+            pixel: [10.0, 5.0],
+            nodata: Some(-9999.0),
+            epsg: Some(32632),
+            projection: None,
+            citation: None,
+            proj4: None,
+        };
+        let d = decimated(&r, 2);
+        // the fifth column is a partial block: dropped
+        assert_eq!((d.width, d.height, d.pixel, d.origin), (2, 2, [20.0, 10.0], [100.0, 50.0]));
+        // block (0, 0): 0, 1, 5 and the hole at 6
+        assert_eq!(d.data, vec![2.0, (2.0 + 3.0 + 7.0 + 8.0) / 4.0, (10.0 + 11.0 + 15.0 + 16.0) / 4.0, 15.0]);
+        assert_eq!(d.epsg, Some(32632));
     }
 
     #[test]
