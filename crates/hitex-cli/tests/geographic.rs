@@ -176,6 +176,15 @@ fn crs_mistakes_get_one_line_each() {
     assert!(!out.exists());
 }
 
+/// Flies two frames over `store` into `frames`: how many show ground.
+fn fly_two_frames(store: &Path, frames: &Path) -> usize {
+    let (s, f) = (store.to_str().unwrap(), frames.to_str().unwrap());
+    let args = ["terrain", "fly", s, "--frames", "2", "--size", "96x64", "--wait", "--backend", "cpu", "--pitch", "35"];
+    let o = hitex(&[&args[..], &["-o", f]].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    frames_with_ground(frames)
+}
+
 /// Frames in `dir` that show terrain (not all sky).
 fn frames_with_ground(dir: &Path) -> usize {
     std::fs::read_dir(dir).unwrap().flatten().filter(|e| covered(&e.path()) > 0.2).count()
@@ -198,24 +207,7 @@ fn a_geographic_dem_alone_builds_a_store_and_flies() {
     let crs = kept.crs().unwrap();
     assert!(!crs.is_geographic() && crs.name().starts_with("a local metric frame"), "{crs:?}");
     assert!((kept.pixel[0] - 64.4).abs() < 0.5 && (kept.pixel[1] - 92.6).abs() < 0.5, "{:?}", kept.pixel);
-    let o = hitex(&[
-        "terrain",
-        "fly",
-        store.to_str().unwrap(),
-        "--frames",
-        "2",
-        "--size",
-        "96x64",
-        "--wait",
-        "--backend",
-        "cpu",
-        "--pitch",
-        "35",
-        "-o",
-        frames.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert_eq!(frames_with_ground(&frames), 2);
+    assert_eq!(fly_two_frames(&store, &frames), 2);
 }
 
 #[test]
@@ -241,24 +233,7 @@ fn a_geographic_dem_under_utm_imagery_builds_with_the_dem_in_the_imagery_crs() {
     assert!(stdout.contains("reprojected from EPSG:4326 to EPSG:32632"), "{stdout}");
     let kept = hitex_io::geotiff::load_geotiff(&store.join("dem.tif")).unwrap();
     assert_eq!(kept.epsg, Some(32632));
-    let o = hitex(&[
-        "terrain",
-        "fly",
-        store.to_str().unwrap(),
-        "--frames",
-        "2",
-        "--size",
-        "96x64",
-        "--wait",
-        "--backend",
-        "cpu",
-        "--pitch",
-        "35",
-        "-o",
-        frames.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert_eq!(frames_with_ground(&frames), 2);
+    assert_eq!(fly_two_frames(&store, &frames), 2);
 }
 
 #[test]

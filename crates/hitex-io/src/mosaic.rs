@@ -94,26 +94,10 @@ pub fn mosaic(tiles: Vec<(GeoRaster, PathBuf)>) -> Result<(GeoRaster, Vec<String
                     "in another CRS than the first tile, and one of the two cannot be resolved".into(),
                 ));
             };
-            let g = Grid::of(&t);
-            let mut pts = Vec::new();
-            for k in 0..=32 {
-                let s = k as f64 / 32.0;
-                let (w, h) = (g.width as f64 * g.pixel[0], g.height as f64 * g.pixel[1]);
-                pts.extend([
-                    [g.origin[0] + s * w, g.origin[1]],
-                    [g.origin[0] + s * w, g.origin[1] - h],
-                    [g.origin[0], g.origin[1] - s * h],
-                    [g.origin[0] + w, g.origin[1] - s * h],
-                ]);
-            }
-            from.transform(to, &mut pts);
-            pts.retain(|q| q[0].is_finite() && q[1].is_finite());
-            if pts.is_empty() {
+            let (e, n) = crate::reproject::extent_in(&Grid::of(&t), &from, to);
+            if n == 0 {
                 return Err(err(&p, format!("its extent does not transform into {}", to.name())));
             }
-            let e = pts.iter().fold([f64::MAX, f64::MIN, f64::MAX, f64::MIN], |e, q| {
-                [e[0].min(q[0]), e[1].max(q[0]), e[2].min(q[1]), e[3].max(q[1])]
-            });
             (e, false, Some(from))
         };
         parts.push(Part { raster: t, path: p, extent: e, aligned, crs: tc });

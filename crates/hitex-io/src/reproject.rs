@@ -57,20 +57,23 @@ fn outline(grid: &Grid, from: &Crs, to: &Crs, per_side: usize) -> Vec<[f64; 2]> 
     pts
 }
 
+/// The extent of `grid` (in `from`) in `to`: (x min, x max, y min, y max)
+/// over points along its edges, with how many of them transformed.
+pub fn extent_in(grid: &Grid, from: &Crs, to: &Crs) -> ([f64; 4], usize) {
+    let pts = outline(grid, from, to, 65);
+    let e = pts.iter().fold([f64::MAX, f64::MIN, f64::MAX, f64::MIN], |e, q| {
+        [e[0].min(q[0]), e[1].max(q[0]), e[2].min(q[1]), e[3].max(q[1])]
+    });
+    (e, pts.len())
+}
+
 /// The grid in `to` that covers `src` (in `from`) with square-ish pixels of
 /// the source's ground size at its centre, and at most `max_pixels` pixels.
 pub fn covering_grid(src: &GeoRaster, from: &Crs, to: &Crs, max_pixels: u64) -> Result<Grid, String> {
     let g = Grid::of(src);
-    let pts = outline(&g, from, to, 65);
-    if pts.len() < 8 {
+    let ([x0, x1, y0, y1], n) = extent_in(&g, from, to);
+    if n < 8 {
         return Err(format!("the raster's extent does not transform into {}", to.name()));
-    }
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for p in &pts {
-        x0 = x0.min(p[0]);
-        x1 = x1.max(p[0]);
-        y0 = y0.min(p[1]);
-        y1 = y1.max(p[1]);
     }
     // the ground size of the source's central pixel, along each target axis
     let c = g.centre(g.width as f64 / 2.0 - 0.5, g.height as f64 / 2.0 - 0.5);
@@ -96,16 +99,9 @@ pub fn covering_grid(src: &GeoRaster, from: &Crs, to: &Crs, max_pixels: u64) -> 
 /// `grid` clipped to where `other` (a grid in `other_crs`) covers it, in
 /// whole pixels of `grid`; None where they do not overlap.
 pub fn clip_to(grid: &Grid, crs: &Crs, other: &Grid, other_crs: &Crs) -> Option<Grid> {
-    let pts = outline(other, other_crs, crs, 65);
-    if pts.is_empty() {
+    let ([x0, x1, y0, y1], n) = extent_in(other, other_crs, crs);
+    if n == 0 {
         return None;
-    }
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for p in &pts {
-        x0 = x0.min(p[0]);
-        x1 = x1.max(p[0]);
-        y0 = y0.min(p[1]);
-        y1 = y1.max(p[1]);
     }
     let i0 = ((x0 - grid.origin[0]) / grid.pixel[0]).floor().max(0.0);
     let i1 = ((x1 - grid.origin[0]) / grid.pixel[0]).ceil().min(grid.width as f64);
