@@ -7,6 +7,7 @@ use hitex_core::btf::index::{IndexMap, SynthesisOptions, features, seam_quality,
 use hitex_core::btf::synth::{Material, SynthOptions, synthesize};
 use hitex_core::btf::{AngularGrid, Btf, Layout};
 use hitex_core::scene::Camera;
+use hitex_core::texture::ToneMap;
 use hitex_core::texture::bc1::Bc1Encoder;
 use hitex_render::btf::{BtfSurface, PreparedBtf};
 use hitex_render::{Job, Renderer};
@@ -59,7 +60,8 @@ pub enum BtfCommand {
         #[arg(long, default_value_t = 3)]
         passes: u32,
     },
-    /// Import a BTF image set (UBO2003/ATRIUM zip or folder, UTIA folder).
+    /// Import a BTF image set (UBO2003/ATRIUM zip or folder, UTIA folder;
+    /// PNG/JPEG, or OpenEXR for an HDR BTF).
     Import {
         /// Zip archive or folder.
         input: PathBuf,
@@ -76,7 +78,7 @@ pub enum BtfCommand {
         #[arg(long)]
         phi: Option<usize>,
     },
-    /// Export a BTF as an image set (one PNG per view/light pair).
+    /// Export a BTF as an image set (one image per view/light pair).
     Export {
         /// Input `.hbtf`.
         input: PathBuf,
@@ -86,6 +88,10 @@ pub enum BtfCommand {
         /// File-name convention.
         #[arg(long, value_enum, default_value_t = ConventionArg::Utia)]
         convention: ConventionArg,
+        /// Image format: png (8-bit sRGB; an HDR BTF's display copy) or exr
+        /// (half-float linear RGB; an HDR BTF's values exactly).
+        #[arg(long, value_enum, default_value_t = SetFormatArg::Png)]
+        format: SetFormatArg,
     },
     /// Render a BTF on a surface through one codebook layout.
     Render {
@@ -121,7 +127,38 @@ pub enum BtfCommand {
         /// Which renderer to use.
         #[arg(long, value_enum, default_value_t = Backend::Auto)]
         backend: Backend,
+        /// Exposure in stops: the radiance is scaled by 2^STOPS before the
+        /// tone map.
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        exposure: f32,
+        /// Tone map after the exposure: none (clamp at 1), reinhard (x/(1+x)),
+        /// aces (Narkowicz's fit); auto is aces for an HDR BTF, none for an
+        /// 8-bit one.
+        #[arg(long, value_enum, default_value_t = ToneMapArg::Auto)]
+        tone_map: ToneMapArg,
     },
+}
+
+/// Tone maps.
+#[derive(Clone, Copy, ValueEnum, Debug, PartialEq)]
+pub enum ToneMapArg {
+    /// aces for an HDR BTF, none for an 8-bit one.
+    Auto,
+    /// Clamp at 1.
+    None,
+    /// x / (1 + x).
+    Reinhard,
+    /// Narkowicz's ACES fit.
+    Aces,
+}
+
+/// Image-set formats.
+#[derive(Clone, Copy, ValueEnum, Debug)]
+pub enum SetFormatArg {
+    /// 8-bit sRGB PNG.
+    Png,
+    /// OpenEXR, half-float linear RGB.
+    Exr,
 }
 
 /// Image-set naming conventions.
@@ -360,6 +397,16 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             let g = btf.grid();
             println!("{input}");
             println!("  sample: {}x{} texels", btf.width(), btf.height());
+            match btf.hdr() {
+                Some(h) => {
+                    let max = h.half.iter().map(|&v| hitex_core::btf::dataset::half_value(v)).fold(0.0, f32::max);
+                    println!(
+                        "  texels: HDR, linear RGB half floats up to {max}; 8-bit display copy scaled by {:.4}",
+                        h.ldr_scale
+                    );
+                }
+                None => println!("  texels: 8-bit sRGB"),
+            }
             println!(
                 "  grid: θ = {:?}° ({}), φ: {} × {:.2}°; {} view × {} light directions, {} images",
                 g.theta_deg(),
@@ -448,6 +495,20 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 btf.grid().phi_count(),
                 if report.resampled { format!("; {}", report.method) } else { String::new() }
             );
+            if let Some(h) = btf.hdr() {
+                println!(
+                    "  HDR: OpenEXR values kept as half floats (version 2 file); the 8-bit display copy is scaled by {:.4}",
+                    h.ldr_scale
+                );
+            }
+            if report.clamped > 0 {
+                println!(
+                    "  clamped: {} EXR values were NaN, infinite, negative or outside the sRGB gamut, set into [0, 65504] \
+                     (first in {})",
+                    report.clamped,
+                    report.clamped_first.as_deref().unwrap_or("?")
+                );
+            }
             for (what, list) in
                 [("missing", &report.missing), ("duplicated", &report.duplicated), ("ignored", &report.ignored)]
             {
@@ -463,7 +524,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             }
             Ok(())
         }
-        BtfCommand::Export { input, output, convention } => {
+        BtfCommand::Export { input, output, convention, format } => {
             let btf = load_or_synth(&input.to_string_lossy(), false)?;
             let conv = match convention {
                 ConventionArg::Ubo => hitex_io::btf_images::Convention::Ubo,
@@ -480,11 +541,24 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             let g = btf.grid();
             let total = (g.directions() * g.directions()) as u64;
             let pb = bar(total, "export");
-            let n = hitex_io::btf_images::export_image_set_with(&btf, &output, conv, &mut |done, _| {
+            let fmt = match format {
+                SetFormatArg::Png => hitex_io::btf_images::SetFormat::Png,
+                SetFormatArg::Exr => hitex_io::btf_images::SetFormat::Exr,
+            };
+            let n = hitex_io::btf_images::export_image_set_as(&btf, &output, conv, fmt, &mut |done, _| {
                 pb.set_position(done as u64)
             })?;
             pb.finish_and_clear();
-            println!("wrote {n} images to {}", output.display());
+            let what = match (fmt, btf.hdr()) {
+                (hitex_io::btf_images::SetFormat::Png, Some(h)) => format!(
+                    "8-bit PNG of the HDR BTF's display copy (linear values × {:.4}); --format exr keeps the values",
+                    h.ldr_scale
+                ),
+                (hitex_io::btf_images::SetFormat::Png, None) => "8-bit PNG".into(),
+                (hitex_io::btf_images::SetFormat::Exr, Some(_)) => "OpenEXR, the half-float values exactly".into(),
+                (hitex_io::btf_images::SetFormat::Exr, None) => "OpenEXR, the 8-bit texels decoded to linear".into(),
+            };
+            println!("wrote {n} images to {} ({what})", output.display());
             Ok(())
         }
         BtfCommand::Render {
@@ -499,8 +573,13 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             light_elevation,
             size,
             backend,
+            exposure,
+            tone_map,
         } => {
             crate::image_out(&output)?;
+            if !(exposure.is_finite() && exposure.abs() <= 64.0) {
+                return Err(CliError::Input(format!("--exposure {exposure} must be in [-64, 64] stops")));
+            }
             if !(repeats.is_finite() && repeats > 0.0 && repeats <= 1000.0) {
                 return Err(CliError::Input(format!("--repeats {repeats} must be in (0, 1000]")));
             }
@@ -523,15 +602,31 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             let camera = camera_for(&surface, quad, size.0 as f32 / size.1 as f32)?;
             let light = light_for(&surface, quad, light_azimuth, light_elevation);
             let t = Instant::now();
-            let prepared = PreparedBtf::new(&btf, layout, bc1.then_some(Bc1Encoder::Ispc), map, surface)?;
+            let mut prepared = PreparedBtf::new(&btf, layout, bc1.then_some(Bc1Encoder::Ispc), map, surface)?;
             let prep_ms = t.elapsed().as_secs_f64() * 1e3;
+            prepared.exposure = exposure.exp2();
+            prepared.tone_map = match tone_map {
+                ToneMapArg::Auto if btf.is_hdr() => ToneMap::Aces,
+                ToneMapArg::Auto | ToneMapArg::None => ToneMap::None,
+                ToneMapArg::Reinhard => ToneMap::Reinhard,
+                ToneMapArg::Aces => ToneMap::Aces,
+            };
             let mut r = open_renderer(backend.into())?;
             let t = Instant::now();
             let frame = render_frame(&mut r, &Job::Btf { surface: &prepared, camera, light }, size)?;
             let ms = t.elapsed().as_secs_f64() * 1e3;
             save(&frame, &output)?;
+            let tone = if btf.is_hdr() || exposure != 0.0 || prepared.tone_map != ToneMap::None {
+                format!(
+                    ", {} texels, exposure {exposure:+} stops, tone map {}",
+                    if btf.is_hdr() { "HDR half-float" } else { "8-bit" },
+                    prepared.tone_map.name()
+                )
+            } else {
+                String::new()
+            };
             println!(
-                "wrote {} ({}x{}, layout {}{}, {} codebook reads per pixel, {}) in {ms:.1} ms (+{prep_ms:.0} ms layout{})",
+                "wrote {} ({}x{}, layout {}{}{tone}, {} codebook reads per pixel, {}) in {ms:.1} ms (+{prep_ms:.0} ms layout{})",
                 output.display(),
                 size.0,
                 size.1,

@@ -81,6 +81,14 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
     h.extend_from_slice(&0u32.to_le_bytes());
     let f = w("huge.hbtf", &h);
     v.push(c(".hbtf", "header claims 1024×1024 texels × 16,384 images", &["btf", "info", &f]));
+    let mut h = b"HBTF".to_vec();
+    for x in [2u32, 92, 4, 4, 1, 1, 6] {
+        h.extend_from_slice(&x.to_le_bytes());
+    }
+    h.extend_from_slice(&0f32.to_le_bytes());
+    h.resize(200, 0);
+    let f = w("flags.hbtf", &h);
+    v.push(c(".hbtf", "version 2 with an unknown flag bit", &["btf", "info", &f]));
     let f = w("magic.hbtf", b"GIF89a certainly not a BTF file at all");
     v.push(c(".hbtf", "wrong magic", &["btf", "info", &f]));
     v.push(c(
@@ -94,6 +102,35 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
     image::RgbImage::new(4, 4).save(set.join("tl000_pl000_tv000_pv000.png")).unwrap();
     image::RgbImage::new(8, 8).save(set.join("tl000_pl000_tv000_pv180.png")).unwrap();
     v.push(c("BTF image set", "images of different sizes", &["btf", "import", &s(&set), "-o", &s(&d.join("x.hbtf"))]));
+    let exr = |planes: &[(&str, f32)], w: usize| {
+        use exr::prelude::*;
+        let chans: Vec<AnyChannel<FlatSamples>> =
+            planes.iter().map(|&(n, v)| AnyChannel::new(n, FlatSamples::F16(vec![f16::from_f32(v); w * 2]))).collect();
+        let layer =
+            Layer::new((w, 2), LayerAttributes::default(), Encoding::FAST_LOSSLESS, AnyChannels::sort(chans.into()));
+        let mut out = std::io::Cursor::new(Vec::new());
+        Image::from_layer(layer).write().to_buffered(&mut out).unwrap();
+        out.into_inner()
+    };
+    let set = d.join("exr-rg");
+    std::fs::create_dir_all(&set).unwrap();
+    std::fs::write(set.join("tl000_pl000_tv000_pv000.exr"), exr(&[("R", 1.0), ("G", 2.0)], 2)).unwrap();
+    v.push(c("BTF EXR set", "channels R and G only", &["btf", "import", &s(&set), "-o", &s(&d.join("x.hbtf"))]));
+    let set = d.join("exr-mixed");
+    std::fs::create_dir_all(&set).unwrap();
+    std::fs::write(set.join("tl000_pl000_tv000_pv000.exr"), exr(&[("R", 1.0), ("G", 2.0), ("B", 3.0)], 2)).unwrap();
+    image::RgbImage::new(2, 2).save(set.join("tl000_pl000_tv000_pv180.png")).unwrap();
+    v.push(c("BTF EXR set", "OpenEXR mixed with PNG", &["btf", "import", &s(&set), "-o", &s(&d.join("x.hbtf"))]));
+    let set = d.join("exr-cut");
+    std::fs::create_dir_all(&set).unwrap();
+    let full = exr(&[("R", 1.0), ("G", 2.0), ("B", 3.0)], 64);
+    std::fs::write(set.join("tl000_pl000_tv000_pv000.exr"), &full[..full.len() / 2]).unwrap();
+    v.push(c("BTF EXR set", "truncated EXR file", &["btf", "import", &s(&set), "-o", &s(&d.join("x.hbtf"))]));
+    let set = d.join("exr-sizes");
+    std::fs::create_dir_all(&set).unwrap();
+    std::fs::write(set.join("tl000_pl000_tv000_pv000.exr"), exr(&[("R", 1.0), ("G", 2.0), ("B", 3.0)], 2)).unwrap();
+    std::fs::write(set.join("tl000_pl000_tv000_pv180.exr"), exr(&[("R", 1.0), ("G", 2.0), ("B", 3.0)], 3)).unwrap();
+    v.push(c("BTF EXR set", "images of different sizes", &["btf", "import", &s(&set), "-o", &s(&d.join("x.hbtf"))]));
     // terrain
     let f = w("trunc.tif", b"II*\x00\x08\x00\x00\x00\x10\x00");
     v.push(c("GeoTIFF DEM", "truncated", &["terrain", "render", "--dem", &f, "-o", &out]));

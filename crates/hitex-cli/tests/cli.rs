@@ -443,6 +443,84 @@ fn btf_synth_info_index_render_export_import() {
     assert_eq!(std::fs::read(&h).unwrap(), std::fs::read(&back).unwrap(), "export + import changed the BTF");
 }
 
+/// One EXR image of constant RGB (half floats) in memory.
+fn exr_rgb(w: usize, h: usize, rgb: [f32; 3]) -> Vec<u8> {
+    use exr::prelude::*;
+    let ch = |n: &str, v: f32| AnyChannel::new(n, FlatSamples::F16(vec![f16::from_f32(v); w * h]));
+    let chans = AnyChannels::sort(vec![ch("R", rgb[0]), ch("G", rgb[1]), ch("B", rgb[2])].into());
+    let layer = Layer::new((w, h), LayerAttributes::default(), Encoding::FAST_LOSSLESS, chans);
+    let mut out = std::io::Cursor::new(Vec::new());
+    Image::from_layer(layer).write().to_buffered(&mut out).unwrap();
+    out.into_inner()
+}
+
+#[test]
+fn btf_hdr_exr_import_render_export() {
+    let d = tmp("btf-hdr");
+    // a UTIA-style HDR set: one folder per view, radiance up to 12
+    let set = d.join("set");
+    for (tv, pv) in [(0, 0), (45, 0), (45, 90), (45, 180), (45, 270)] {
+        let f = set.join(format!("tv{tv:03}_pv{pv:03}"));
+        std::fs::create_dir_all(&f).unwrap();
+        for (tl, pl) in [(0, 0), (45, 0), (45, 90), (45, 180), (45, 270)] {
+            let v = 0.2 + (tl + pl + tv) as f32 / 30.0;
+            std::fs::write(f.join(format!("tl{tl:03}_pl{pl:03}.exr")), exr_rgb(4, 4, [v, 0.5 * v, 0.25])).unwrap();
+        }
+    }
+    let h = d.join("hdr.hbtf");
+    let hs = h.to_str().unwrap();
+    let o = hitex(&["btf", "import", set.to_str().unwrap(), "-o", hs, "--theta", "0,45", "--phi", "4"]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(text.contains("HDR") && text.contains("version 2"), "{text}");
+    let o = hitex(&["btf", "info", hs]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("HDR, linear RGB half floats up to 12.2"), "{text}");
+    // rendered with an exposure and each tone map on the CPU
+    let mut images = Vec::new();
+    for tone in ["none", "reinhard", "aces"] {
+        let out = d.join(format!("r-{tone}.png"));
+        let o = hitex(&[
+            "btf",
+            "render",
+            hs,
+            "-o",
+            out.to_str().unwrap(),
+            "--size",
+            "64x48",
+            "--backend",
+            "cpu",
+            "--exposure",
+            "-1.5",
+            "--tone-map",
+            tone,
+        ]);
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(text.contains(&format!("exposure -1.5 stops, tone map {tone}")), "{text}");
+        images.push(std::fs::read(&out).unwrap());
+    }
+    assert!(images[0] != images[1] && images[1] != images[2]);
+    // BC1 is refused for HDR texels
+    let o = hitex(&["btf", "render", hs, "-o", d.join("bc.png").to_str().unwrap(), "--bc1", "--backend", "cpu"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("HDR"));
+    // EXR export keeps the values: export, import, export again gives the same files
+    let (e1, e2) = (d.join("e1"), d.join("e2"));
+    let o = hitex(&["btf", "export", hs, "-o", e1.to_str().unwrap(), "--format", "exr"]);
+    assert!(o.status.success() && String::from_utf8_lossy(&o.stdout).contains("values exactly"));
+    let back = d.join("back.hbtf");
+    assert!(hitex(&["btf", "import", e1.to_str().unwrap(), "-o", back.to_str().unwrap()]).status.success());
+    assert_eq!(std::fs::read(&h).unwrap(), std::fs::read(&back).unwrap(), "EXR export + import changed the HDR BTF");
+    assert!(
+        hitex(&["btf", "export", back.to_str().unwrap(), "-o", e2.to_str().unwrap(), "--format", "exr"])
+            .status
+            .success()
+    );
+    let name = "tl045_pl090_tv045_pv180.exr";
+    assert_eq!(std::fs::read(e1.join(name)).unwrap(), std::fs::read(e2.join(name)).unwrap());
+}
+
 #[test]
 fn btf_bad_input_gives_one_clear_line() {
     let d = tmp("btf-bad");

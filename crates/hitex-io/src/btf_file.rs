@@ -4,17 +4,25 @@
 //! | offset      | size      | field                                             |
 //! |-------------|-----------|---------------------------------------------------|
 //! | 0           | 4         | magic `b"HBTF"`                                   |
-//! | 4           | 4         | `u32` version, 1                                  |
-//! | 8           | 4         | `u32` header bytes = 44 + 4·θ count (payload offset) |
+//! | 4           | 4         | `u32` version, 1 or 2                             |
+//! | 8           | 4         | `u32` header bytes = 44 + 4·θ count (+ 16 with HDR) |
 //! | 12          | 4         | `u32` sample width in texels                      |
 //! | 16          | 4         | `u32` sample height in texels                     |
 //! | 20          | 4         | `u32` θ count                                     |
 //! | 24          | 4         | `u32` φ count                                     |
-//! | 28          | 4         | `u32` flags, 0                                    |
+//! | 28          | 4         | `u32` flags: bit 0 = HDR payload (version 2 only) |
 //! | 32          | 4·θ count | `f32` polar angles in degrees                     |
 //! | 32 + 4·θ    | 8         | `u64` payload length in bytes                     |
 //! | 40 + 4·θ    | 4         | `u32` CRC-32 (IEEE, as zip and PNG) of the payload |
-//! | 44 + 4·θ    | payload   | RGB8 texels exactly as [`Btf::texels`]            |
+//! | 44 + 4·θ    | 8         | HDR only: `u64` HDR payload length in bytes       |
+//! | 52 + 4·θ    | 4         | HDR only: `u32` CRC-32 of the HDR payload         |
+//! | 56 + 4·θ    | 4         | HDR only: `f32` display scale ([`Hdr::ldr_scale`]) |
+//! | header      | payload   | RGB8 texels exactly as [`Btf::texels`]            |
+//! | + payload   | HDR payload | HDR only: linear RGB half floats ([`Hdr::half`]), `u16` little-endian |
+//!
+//! An 8-bit BTF is written as version 1 (readable by every earlier build); a
+//! BTF with linear half-float RGB (imported from OpenEXR) as version 2 with
+//! flag bit 0. Half floats must be finite and non-negative.
 //!
 //! Every declared size is checked against the shape limits of
 //! [`checked_size`] and against the bytes actually present before anything
@@ -22,6 +30,7 @@
 //! once. Nothing may follow the payload.
 
 use crate::IoError;
+use hitex_core::btf::dataset::Hdr;
 use hitex_core::btf::dataset::checked_size;
 use hitex_core::btf::grid::MAX_ANGLES;
 use hitex_core::btf::{AngularGrid, Btf};
@@ -31,8 +40,12 @@ use std::path::{Path, PathBuf};
 /// The file signature.
 pub const HBTF_MAGIC: [u8; 4] = *b"HBTF";
 
-/// The version this module writes and reads.
-pub const HBTF_VERSION: u32 = 1;
+/// The newest version this module writes and reads (version 1, 8-bit
+/// only, is read and written too).
+pub const HBTF_VERSION: u32 = 2;
+
+/// Flag bit: the file carries an HDR payload.
+pub const FLAG_HDR: u32 = 1;
 
 /// Bytes of the fixed part of the header (magic to flags).
 const FIXED_HEADER: usize = 32;
@@ -40,13 +53,16 @@ const FIXED_HEADER: usize = 32;
 /// Bytes after the θ list: payload length and CRC.
 const HEADER_TAIL: usize = 12;
 
+/// Bytes of the HDR fields after the tail: length, CRC, display scale.
+const HDR_TAIL: usize = 16;
+
 /// Chunk in which the payload is written, read and checksummed.
 const CHUNK: usize = 1 << 20;
 
 /// The header of an `.hbtf` file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HbtfHeader {
-    /// Format version (1).
+    /// Format version (1 or 2).
     pub version: u32,
     /// Header length in bytes, the offset of the payload.
     pub header_bytes: u32,
@@ -56,12 +72,26 @@ pub struct HbtfHeader {
     pub height: u32,
     /// The angular grid.
     pub grid: AngularGrid,
-    /// Flags (0 in version 1).
+    /// Flags (0 in version 1; [`FLAG_HDR`] in version 2).
     pub flags: u32,
     /// Payload length in bytes (RGB8 texels).
     pub payload_bytes: u64,
     /// CRC-32 of the payload as recorded in the header.
     pub crc32: u32,
+    /// The HDR payload's length in bytes, CRC-32 and display scale, when
+    /// the file has one.
+    pub hdr: Option<HdrFields>,
+}
+
+/// The header fields of an HDR payload.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HdrFields {
+    /// Length in bytes (2 per half float, 3 half floats per texel).
+    pub bytes: u64,
+    /// CRC-32 of the payload's bytes.
+    pub crc32: u32,
+    /// [`Hdr::ldr_scale`].
+    pub ldr_scale: f32,
 }
 
 impl HbtfHeader {
@@ -72,17 +102,25 @@ impl HbtfHeader {
 }
 
 /// Header bytes for `theta_count` polar angles.
-fn header_len(theta_count: usize) -> usize {
-    FIXED_HEADER + 4 * theta_count + HEADER_TAIL
+fn header_len(theta_count: usize, hdr: bool) -> usize {
+    FIXED_HEADER + 4 * theta_count + HEADER_TAIL + if hdr { HDR_TAIL } else { 0 }
 }
 
-/// The serialised header of `btf` with the payload's CRC.
-fn encode_header(btf: &Btf, crc: u32) -> Vec<u8> {
+/// The half floats as little-endian bytes.
+fn half_bytes(half: &[u16]) -> impl Iterator<Item = Vec<u8>> + '_ {
+    half.chunks(CHUNK / 2).map(|c| c.iter().flat_map(|h| h.to_le_bytes()).collect())
+}
+
+/// The serialised header of `btf` with the payloads' CRCs.
+fn encode_header(btf: &Btf, crc: u32, hdr_crc: u32) -> Vec<u8> {
     let grid = btf.grid();
     let n = grid.theta_count();
-    let mut h = Vec::with_capacity(header_len(n));
+    let hdr = btf.hdr();
+    let (version, flags) = if hdr.is_some() { (2, FLAG_HDR) } else { (1, 0) };
+    let len = header_len(n, hdr.is_some());
+    let mut h = Vec::with_capacity(len);
     h.extend_from_slice(&HBTF_MAGIC);
-    for v in [HBTF_VERSION, header_len(n) as u32, btf.width(), btf.height(), n as u32, grid.phi_count() as u32, 0] {
+    for v in [version, len as u32, btf.width(), btf.height(), n as u32, grid.phi_count() as u32, flags] {
         h.extend_from_slice(&v.to_le_bytes());
     }
     for &t in grid.theta_deg() {
@@ -90,20 +128,36 @@ fn encode_header(btf: &Btf, crc: u32) -> Vec<u8> {
     }
     h.extend_from_slice(&(btf.texels().len() as u64).to_le_bytes());
     h.extend_from_slice(&crc.to_le_bytes());
+    if let Some(hdr) = hdr {
+        h.extend_from_slice(&(hdr.half.len() as u64 * 2).to_le_bytes());
+        h.extend_from_slice(&hdr_crc.to_le_bytes());
+        h.extend_from_slice(&hdr.ldr_scale.to_le_bytes());
+    }
     h
 }
 
-/// Writes `btf` as an `.hbtf` file, atomically: the data goes to a temporary
-/// file in the same folder, is synced, and is renamed over `path`; on any
-/// failure the temporary file is removed and `path` is untouched. The payload
-/// is written in 1 MiB chunks straight from the BTF (no second copy).
+/// Writes `btf` as an `.hbtf` file (version 1, or 2 with its HDR payload),
+/// atomically: the data goes to a temporary file in the same folder, is
+/// synced, and is renamed over `path`; on any failure the temporary file is
+/// removed and `path` is untouched. The payload is written in 1 MiB chunks
+/// straight from the BTF.
 pub fn write_hbtf(path: &Path, btf: &Btf) -> Result<(), IoError> {
     let crc = crc32(btf.texels());
-    let header = encode_header(btf, crc);
+    let hdr_crc = btf.hdr().map_or(0, |h| {
+        let mut c = Crc32::new();
+        half_bytes(&h.half).for_each(|b| c.update(&b));
+        c.finish()
+    });
+    let header = encode_header(btf, crc, hdr_crc);
     write_atomic_with(path, |w| {
         w.write_all(&header)?;
         for chunk in btf.texels().chunks(CHUNK) {
             w.write_all(chunk)?;
+        }
+        if let Some(h) = btf.hdr() {
+            for b in half_bytes(&h.half) {
+                w.write_all(&b)?;
+            }
         }
         Ok(())
     })
@@ -159,28 +213,67 @@ pub fn read_hbtf(path: &Path) -> Result<Btf, IoError> {
     let len = file.metadata().map_err(rerr)?.len();
     let mut r = std::io::BufReader::new(file);
     let header = read_header(&mut r, len, path)?;
-    // the header checks bound the payload by both the shape limit and the file length
-    let mut texels = vec![0u8; header.payload_bytes as usize];
-    let mut done = 0usize;
-    let mut crc = Crc32::new();
-    while done < texels.len() {
-        let end = (done + CHUNK).min(texels.len());
-        r.read_exact(&mut texels[done..end]).map_err(|e| {
-            if e.kind() == std::io::ErrorKind::UnexpectedEof {
-                fmt(format!("the file ends inside the payload (byte {} of {})", done, texels.len()))
-            } else {
-                rerr(e)
-            }
-        })?;
-        crc.update(&texels[done..end]);
-        done = end;
-    }
-    check_crc(crc.finish(), header.crc32).map_err(fmt)?;
+    // the header checks bound the payloads by both the shape limit and the file length
+    let mut read_payload = |n: u64, what: &str, recorded: u32| -> Result<Vec<u8>, IoError> {
+        let mut bytes = vec![0u8; n as usize];
+        let mut done = 0usize;
+        let mut crc = Crc32::new();
+        while done < bytes.len() {
+            let end = (done + CHUNK).min(bytes.len());
+            r.read_exact(&mut bytes[done..end]).map_err(|e| {
+                if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                    fmt(format!("the file ends inside the {what} (byte {} of {})", done, bytes.len()))
+                } else {
+                    rerr(e)
+                }
+            })?;
+            crc.update(&bytes[done..end]);
+            done = end;
+        }
+        check_crc(crc.finish(), recorded).map_err(|m| fmt(format!("{what}: {m}")))?;
+        Ok(bytes)
+    };
+    let texels = read_payload(header.payload_bytes, "payload", header.crc32)?;
+    let half = match header.hdr {
+        Some(h) => Some(read_payload(h.bytes, "HDR payload", h.crc32)?),
+        None => None,
+    };
     let mut probe = [0u8; 1];
     if r.read(&mut probe).map_err(rerr)? != 0 {
         return Err(fmt("data follows the payload (the file grew after it was written)".into()));
     }
-    Btf::new(header.grid, header.width, header.height, texels).map_err(|e| IoError::from(e).in_file(path))
+    assemble(header, texels, half.as_deref(), path)
+}
+
+/// The BTF of a checked header and its payloads; half floats must be
+/// finite and non-negative.
+fn assemble(header: HbtfHeader, texels: Vec<u8>, half: Option<&[u8]>, path: &Path) -> Result<Btf, IoError> {
+    let hdr = match (header.hdr, half) {
+        (Some(f), Some(bytes)) => {
+            let half: Vec<u16> = bytes.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect();
+            if let Some(i) = half.iter().position(|&h| h & 0x8000 != 0 || h & 0x7c00 == 0x7c00) {
+                return Err(IoError::Format {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "HDR payload value {i} (texel {}, channel {}) is {:#06x}: negative, infinite or NaN; \
+                         HDR texels are finite and non-negative",
+                        i / 3,
+                        i % 3,
+                        half[i]
+                    ),
+                });
+            }
+            if !(f.ldr_scale.is_finite() && f.ldr_scale > 0.0 && f.ldr_scale <= 1.0) {
+                return Err(IoError::Format {
+                    path: path.to_path_buf(),
+                    message: format!("HDR display scale {} is outside (0, 1]", f.ldr_scale),
+                });
+            }
+            Some(Hdr { half, ldr_scale: f.ldr_scale })
+        }
+        _ => None,
+    };
+    Btf::from_parts(header.grid, header.width, header.height, texels, hdr).map_err(|e| IoError::from(e).in_file(path))
 }
 
 /// Reads and checks only the header of an `.hbtf` file (for `hitex btf
@@ -203,9 +296,19 @@ pub fn hbtf_from_bytes(bytes: &[u8], name: &str) -> Result<Btf, IoError> {
     let mut r = bytes;
     let header = read_header(&mut r, bytes.len() as u64, path)?;
     check_trailing(bytes.len() as u64, &header).map_err(fmt)?;
-    let payload = &bytes[header.header_bytes as usize..];
-    check_crc(crc32(payload), header.crc32).map_err(fmt)?;
-    Btf::new(header.grid, header.width, header.height, payload.to_vec()).map_err(|e| IoError::from(e).in_file(path))
+    let start = header.header_bytes as usize;
+    let payload = &bytes[start..start + header.payload_bytes as usize];
+    check_crc(crc32(payload), header.crc32).map_err(|m| fmt(format!("payload: {m}")))?;
+    let half = match header.hdr {
+        Some(h) => {
+            let half = &bytes[start + payload.len()..];
+            check_crc(crc32(half), h.crc32).map_err(|m| fmt(format!("HDR payload: {m}")))?;
+            Some(half)
+        }
+        None => None,
+    };
+    let texels = payload.to_vec();
+    assemble(header, texels, half, path)
 }
 
 fn check_crc(actual: u32, recorded: u32) -> Result<(), String> {
@@ -218,9 +321,10 @@ fn check_crc(actual: u32, recorded: u32) -> Result<(), String> {
 }
 
 fn check_trailing(file_len: u64, h: &HbtfHeader) -> Result<(), String> {
-    let end = h.header_bytes as u64 + h.payload_bytes;
+    let payloads = h.payload_bytes + h.hdr.map_or(0, |f| f.bytes);
+    let end = h.header_bytes as u64 + payloads;
     if file_len > end {
-        return Err(format!("{} bytes follow the {}-byte payload", file_len - end, h.payload_bytes));
+        return Err(format!("{} bytes follow the {payloads}-byte payload", file_len - end));
     }
     Ok(())
 }
@@ -252,14 +356,18 @@ fn read_header(r: &mut impl Read, file_len: u64, path: &Path) -> Result<HbtfHead
     let field = |i: usize| u32::from_le_bytes([fixed[i], fixed[i + 1], fixed[i + 2], fixed[i + 3]]);
     let (version, header_bytes, width, height) = (field(4), field(8), field(12), field(16));
     let (theta_count, phi_count, flags) = (field(20), field(24), field(28));
-    if version != HBTF_VERSION {
+    if !(1..=HBTF_VERSION).contains(&version) {
         return Err(fmt(format!(
-            "format version {version} is not supported (this build reads version {HBTF_VERSION})"
+            "format version {version} is not supported (this build reads versions 1 to {HBTF_VERSION})"
         )));
     }
-    if flags != 0 {
+    if version == 1 && flags != 0 {
         return Err(fmt(format!("header flags {flags:#x} are unknown (version 1 has none)")));
     }
+    if flags & !FLAG_HDR != 0 {
+        return Err(fmt(format!("header flags {flags:#x} are unknown (version 2 knows only bit 0, HDR)")));
+    }
+    let has_hdr = flags & FLAG_HDR != 0;
     if theta_count == 0 || theta_count as usize > MAX_ANGLES {
         return Err(fmt(format!("header declares {theta_count} polar angles; 1..={MAX_ANGLES} are allowed")));
     }
@@ -267,7 +375,7 @@ fn read_header(r: &mut impl Read, file_len: u64, path: &Path) -> Result<HbtfHead
         return Err(fmt(format!("header declares {phi_count} azimuths; 1..={MAX_ANGLES} are allowed")));
     }
     let theta_count = theta_count as usize;
-    let want = header_len(theta_count);
+    let want = header_len(theta_count, has_hdr);
     if header_bytes as usize != want {
         return Err(fmt(format!(
             "header length field is {header_bytes} bytes; {theta_count} polar angles make a {want}-byte header"
@@ -282,7 +390,8 @@ fn read_header(r: &mut impl Read, file_len: u64, path: &Path) -> Result<HbtfHead
     let grid = AngularGrid::new(theta, phi_count as usize).map_err(|e| fmt(format!("header grid: {e}")))?;
     let size = checked_size(&grid, width, height).map_err(|e| fmt(format!("header shape: {e}")))?;
     let mut tail = [0u8; HEADER_TAIL];
-    read(&mut tail, "payload length and CRC", want - HEADER_TAIL)?;
+    let tail_at = FIXED_HEADER + 4 * theta_count;
+    read(&mut tail, "payload length and CRC", tail_at)?;
     let payload_bytes = u64::from_le_bytes([tail[0], tail[1], tail[2], tail[3], tail[4], tail[5], tail[6], tail[7]]);
     let crc = u32::from_le_bytes([tail[8], tail[9], tail[10], tail[11]]);
     if payload_bytes != size as u64 {
@@ -291,14 +400,36 @@ fn read_header(r: &mut impl Read, file_len: u64, path: &Path) -> Result<HbtfHead
             grid.directions()
         )));
     }
+    let hdr = if has_hdr {
+        let mut t = [0u8; HDR_TAIL];
+        read(&mut t, "HDR payload length, CRC and display scale", tail_at + HEADER_TAIL)?;
+        let bytes = u64::from_le_bytes([t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7]]);
+        let f = HdrFields {
+            bytes,
+            crc32: u32::from_le_bytes([t[8], t[9], t[10], t[11]]),
+            ldr_scale: f32::from_le_bytes([t[12], t[13], t[14], t[15]]),
+        };
+        if bytes != 2 * size as u64 {
+            return Err(fmt(format!(
+                "header declares an HDR payload of {bytes} bytes; {width}x{height} texels × {}² directions of \
+                 half-float RGB need {}",
+                grid.directions(),
+                2 * size as u64
+            )));
+        }
+        Some(f)
+    } else {
+        None
+    };
+    let total = payload_bytes + hdr.map_or(0, |f| f.bytes);
     let remaining = file_len - want as u64;
-    if payload_bytes > remaining {
+    if total > remaining {
         return Err(fmt(format!(
-            "header declares a payload of {payload_bytes} bytes but only {remaining} follow the header (truncated file)"
+            "header declares payloads of {total} bytes but only {remaining} follow the header (truncated file)"
         )));
     }
-    crate::limits::check_cap("the payload", Some(payload_bytes)).map_err(fmt)?;
-    Ok(HbtfHeader { version, header_bytes, width, height, grid, flags, payload_bytes, crc32: crc })
+    crate::limits::check_cap("the payload", Some(total)).map_err(fmt)?;
+    Ok(HbtfHeader { version, header_bytes, width, height, grid, flags, payload_bytes, crc32: crc, hdr })
 }
 
 /// CRC-32/IEEE (reflected polynomial 0xEDB88320, as zip, PNG and gzip),
@@ -407,8 +538,12 @@ mod tests {
     }
 
     fn bytes_of(btf: &Btf) -> Vec<u8> {
-        let mut b = encode_header(btf, crc32(btf.texels()));
+        let hdr_crc = btf.hdr().map_or(0, |h| crc32(&half_bytes(&h.half).collect::<Vec<_>>().concat()));
+        let mut b = encode_header(btf, crc32(btf.texels()), hdr_crc);
         b.extend_from_slice(btf.texels());
+        if let Some(h) = btf.hdr() {
+            half_bytes(&h.half).for_each(|c| b.extend_from_slice(&c));
+        }
         b
     }
 
@@ -505,7 +640,7 @@ mod tests {
         let size = checked_size(&grid, 32, 32).unwrap();
         let mut h = Vec::new();
         h.extend_from_slice(b"HBTF");
-        for v in [1u32, header_len(8) as u32, 32, 32, 8, 16, 0] {
+        for v in [1u32, header_len(8, false) as u32, 32, 32, 8, 16, 0] {
             h.extend_from_slice(&v.to_le_bytes());
         }
         for t in grid.theta_deg() {
@@ -526,8 +661,8 @@ mod tests {
         b[0] = b'X';
         assert!(hbtf_from_bytes(&b, "m").unwrap_err().to_string().contains("magic"));
         let mut b = good.clone();
-        set_u32(&mut b, 4, 2);
-        assert!(hbtf_from_bytes(&b, "v").unwrap_err().to_string().contains("version 2"));
+        set_u32(&mut b, 4, 3);
+        assert!(hbtf_from_bytes(&b, "v").unwrap_err().to_string().contains("version 3"));
         // a flipped payload bit
         let mut b = good.clone();
         let last = b.len() - 1;
@@ -543,6 +678,61 @@ mod tests {
         assert!(e.contains("crc.hbtf") && e.contains("CRC"), "{e}");
         // the header alone still reads
         assert!(read_hbtf_header(&p).is_ok());
+    }
+
+    fn hdr_btf(seed: u32) -> Btf {
+        let grid = AngularGrid::new(vec![0.0, 30.0, 60.0], 4).unwrap();
+        let n = checked_size(&grid, 3, 2).unwrap();
+        let linear: Vec<f32> =
+            (0..n).map(|i| (((i as u32).wrapping_mul(2_654_435_761) ^ seed) % 5000) as f32 / 700.0).collect();
+        Btf::from_linear(grid, 3, 2, &linear).unwrap()
+    }
+
+    #[test]
+    fn btf_file_version_2_carries_the_hdr_payload() {
+        let d = tmpdir("v2");
+        let p = d.join("h.hbtf");
+        let btf = hdr_btf(3);
+        write_hbtf(&p, &btf).unwrap();
+        let h = read_hbtf_header(&p).unwrap();
+        assert_eq!((h.version, h.flags), (2, FLAG_HDR));
+        let f = h.hdr.unwrap();
+        assert_eq!(f.bytes, 2 * h.payload_bytes);
+        assert_eq!(f.ldr_scale, btf.hdr().unwrap().ldr_scale);
+        assert_eq!(h.header_bytes as u64 + 3 * h.payload_bytes, std::fs::metadata(&p).unwrap().len());
+        assert_eq!(read_hbtf(&p).unwrap(), btf);
+        let bytes = std::fs::read(&p).unwrap();
+        assert_eq!(hbtf_from_bytes(&bytes, "mem").unwrap(), btf);
+        // an 8-bit BTF is still written as version 1
+        write_hbtf(&p, &small_btf(1)).unwrap();
+        assert_eq!(read_hbtf_header(&p).unwrap().version, 1);
+        // broken HDR files: every cut, a flipped HDR bit, a NaN half, a bad scale, a wrong length
+        for k in (0..bytes.len()).step_by(5) {
+            let e = hbtf_from_bytes(&bytes[..k], "cut.hbtf").unwrap_err().to_string();
+            assert!(e.contains("cut.hbtf"), "{k}: {e}");
+        }
+        let mut b = bytes.clone();
+        let last = b.len() - 2;
+        b[last] ^= 1;
+        assert!(hbtf_from_bytes(&b, "c").unwrap_err().to_string().contains("HDR payload: payload CRC"));
+        let at = h.header_bytes as usize + h.payload_bytes as usize;
+        let mut b = bytes.clone();
+        b[at..at + 2].copy_from_slice(&0x7e00u16.to_le_bytes());
+        let crc = crc32(&b[at..]);
+        // the HDR fields close the header: length, CRC, display scale
+        let crc_at = h.header_bytes as usize - 8;
+        b[crc_at..crc_at + 4].copy_from_slice(&crc.to_le_bytes());
+        let e = hbtf_from_bytes(&b, "nan.hbtf").unwrap_err().to_string();
+        assert!(e.contains("nan.hbtf") && e.contains("NaN") && e.contains("texel 0"), "{e}");
+        let mut b = bytes.clone();
+        b[crc_at + 4..crc_at + 8].copy_from_slice(&2.5f32.to_le_bytes());
+        assert!(hbtf_from_bytes(&b, "s").unwrap_err().to_string().contains("display scale"));
+        let mut b = bytes.clone();
+        b[crc_at - 8..crc_at].copy_from_slice(&7u64.to_le_bytes());
+        assert!(hbtf_from_bytes(&b, "l").unwrap_err().to_string().contains("HDR payload of 7 bytes"));
+        let mut b = bytes.clone();
+        set_u32(&mut b, 28, 3);
+        assert!(hbtf_from_bytes(&b, "f").unwrap_err().to_string().contains("flags"));
     }
 
     #[test]

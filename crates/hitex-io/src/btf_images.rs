@@ -12,9 +12,20 @@
 //! (a material prefix) and folders inside the archive are allowed, angles
 //! may have decimals. Files that do not carry all four angles, hidden files
 //! and macOS `__MACOSX` resource forks, and files with other extensions are
-//! listed as ignored. `.png`, `.jpg` and `.jpeg` are read (the `image` crate
-//! is built with PNG and JPEG only); an `.exr` set is refused with a request
-//! to convert it to PNG.
+//! listed as ignored. `.png`, `.jpg` and `.jpeg` are read through the
+//! `image` crate; `.exr` (OpenEXR, half or float, the form of the UTIA
+//! database's measured sets) through the `exr` crate, which makes an **HDR**
+//! BTF (linear half floats beside the 8-bit display copy, see
+//! [`hitex_core::btf::dataset::Hdr`]). A file whose own name lacks the view
+//! angles takes them from its folder (UTIA's `tv030_pv120/tl015_pl060.exr`).
+//! A set mixing 8-bit images and EXR is refused.
+//!
+//! EXR channels: `R`, `G`, `B` (primaries from the file's `chromaticities`
+//! attribute when it has one, else Rec. 709 / sRGB), or `X`, `Y`, `Z` (CIE
+//! 1931, converted to linear sRGB for D65), or `Y` alone (grey); a layer
+//! prefix (`rgb.R`) is allowed. Values that are NaN, infinite or negative
+//! (also colours outside the sRGB gamut after conversion) are clamped to
+//! [0, 65504] and counted in [`ImageSetReport::clamped`].
 //!
 //! A set whose directions are exactly the target grid (all θ × φ
 //! combinations, e.g. one written by [`export_image_set`]) is used as is;
@@ -24,6 +35,7 @@
 
 use crate::IoError;
 use crate::image_io::{MAX_IMAGE_FILE_BYTES, write_atomic};
+use hitex_core::btf::dataset::half_bits;
 use hitex_core::btf::dataset::{MAX_BTF_SIDE, MAX_BTF_TEXELS, checked_size};
 use hitex_core::btf::{AngularGrid, Btf};
 use hitex_core::texture::{linear_to_srgb_u8, srgb_to_linear};
@@ -64,14 +76,33 @@ pub enum Convention {
 }
 
 impl Convention {
-    /// The file name of one image, angles in integer degrees.
+    /// The file name of one PNG image, angles in integer degrees.
     pub fn file_name(self, tl: u32, pl: u32, tv: u32, pv: u32) -> String {
+        self.file_name_as(tl, pl, tv, pv, SetFormat::Png)
+    }
+
+    /// The file name of one image in `format`, angles in integer degrees.
+    pub fn file_name_as(self, tl: u32, pl: u32, tv: u32, pv: u32, format: SetFormat) -> String {
         let sep = match self {
             Convention::Ubo => ' ',
             Convention::Utia => '_',
         };
-        format!("tl{tl:03}{sep}pl{pl:03}{sep}tv{tv:03}{sep}pv{pv:03}.png")
+        let ext = match format {
+            SetFormat::Png => "png",
+            SetFormat::Exr => "exr",
+        };
+        format!("tl{tl:03}{sep}pl{pl:03}{sep}tv{tv:03}{sep}pv{pv:03}.{ext}")
     }
+}
+
+/// The image format of an exported set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SetFormat {
+    /// 8-bit sRGB PNG: the BTF's 8-bit texels (an HDR BTF's display copy).
+    Png,
+    /// OpenEXR, half-float linear RGB (ZIP compressed): an HDR BTF's values
+    /// exactly; an 8-bit BTF's texels decoded from sRGB.
+    Exr,
 }
 
 /// What [`import_image_set`] found and did.
@@ -97,6 +128,13 @@ pub struct ImageSetReport {
     pub resampled: bool,
     /// How the target images were made.
     pub method: String,
+    /// Whether the set was OpenEXR (the BTF is HDR).
+    pub hdr: bool,
+    /// EXR values clamped into [0, 65504]: NaN, infinite, negative or out
+    /// of the sRGB gamut after conversion.
+    pub clamped: u64,
+    /// The first file that had a clamped value.
+    pub clamped_first: Option<String>,
 }
 
 /// A direction as named: degrees, φ in [0, 360).
@@ -163,7 +201,7 @@ enum Name {
     /// A PNG or JPEG image with `[tl, pl, tv, pv]`.
     Image([f32; 4]),
     /// An OpenEXR image with the angles.
-    Exr,
+    Exr([f32; 4]),
     /// Anything else.
     Other,
 }
@@ -199,7 +237,7 @@ fn parse_name(base: &str) -> Name {
     match vals {
         [Some(tl), Some(pl), Some(tv), Some(pv)] => {
             if exr {
-                Name::Exr
+                Name::Exr([tl, pl, tv, pv])
             } else {
                 Name::Image([tl, pl, tv, pv])
             }
@@ -343,6 +381,205 @@ fn decode_rgb(bytes: &[u8], path: &Path) -> Result<(u32, u32, Vec<u8>), IoError>
     Ok((w, h, img.into_raw()))
 }
 
+/// Linear sRGB (D65) from CIE XYZ.
+const XYZ_TO_SRGB: [[f64; 3]; 3] = [
+    [3.240_454_2, -1.537_138_5, -0.498_531_4],
+    [-0.969_266_0, 1.876_010_8, 0.041_556_0],
+    [0.055_643_4, -0.204_025_9, 1.057_225_2],
+];
+
+/// Rec. 709 / sRGB primaries and D65 white, as `chromaticities` records them.
+const REC709: [[f64; 2]; 4] = [[0.64, 0.33], [0.30, 0.60], [0.15, 0.06], [0.3127, 0.3290]];
+
+fn mul3(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut m = [[0.0; 3]; 3];
+    for (i, row) in m.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = (0..3).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    m
+}
+
+fn inverse3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
+    let c = |r: usize, k: usize| {
+        let (r1, r2, k1, k2) = ((r + 1) % 3, (r + 2) % 3, (k + 1) % 3, (k + 2) % 3);
+        m[r1][k1] * m[r2][k2] - m[r1][k2] * m[r2][k1]
+    };
+    let det = m[0][0] * c(0, 0) + m[0][1] * c(0, 1) + m[0][2] * c(0, 2);
+    if det.abs() < 1e-12 || !det.is_finite() {
+        return None;
+    }
+    let mut inv = [[0.0; 3]; 3];
+    for (r, row) in inv.iter_mut().enumerate() {
+        for (k, v) in row.iter_mut().enumerate() {
+            *v = c(k, r) / det;
+        }
+    }
+    Some(inv)
+}
+
+/// The RGB → XYZ matrix of primaries and a white point (xy chromaticities):
+/// the columns are the primaries' XYZ scaled so that RGB (1, 1, 1) is the
+/// white of luminance 1.
+fn rgb_to_xyz(c: &[[f64; 2]; 4]) -> Option<[[f64; 3]; 3]> {
+    let xyz = |p: [f64; 2]| [p[0] / p[1], 1.0, (1.0 - p[0] - p[1]) / p[1]];
+    let (r, g, b, w) = (xyz(c[0]), xyz(c[1]), xyz(c[2]), xyz(c[3]));
+    let p = [[r[0], g[0], b[0]], [r[1], g[1], b[1]], [r[2], g[2], b[2]]];
+    let inv = inverse3(&p)?;
+    let s: Vec<f64> = (0..3).map(|i| (0..3).map(|k| inv[i][k] * w[k]).sum()).collect();
+    Some([
+        [p[0][0] * s[0], p[0][1] * s[1], p[0][2] * s[2]],
+        [p[1][0] * s[0], p[1][1] * s[1], p[1][2] * s[2]],
+        [p[2][0] * s[0], p[2][1] * s[1], p[2][2] * s[2]],
+    ])
+}
+
+/// A decoded EXR image: linear RGB (sRGB primaries) and the values clamped.
+struct ExrImage {
+    width: u32,
+    height: u32,
+    rgb: Vec<f32>,
+    clamped: u64,
+}
+
+/// Decodes an OpenEXR image to linear RGB with sRGB primaries, checking the
+/// declared size before decoding; see the module documentation for the
+/// channels read and the clamping.
+fn decode_exr(bytes: &[u8], path: &Path) -> Result<ExrImage, IoError> {
+    use exr::prelude::{FlatSamples, ReadChannels, ReadLayers};
+    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
+        .map_err(|e| fmt(format!("not a readable OpenEXR file: {e}")))?;
+    let Some(header) = meta.headers.iter().find(|h| !h.deep) else {
+        return Err(fmt("the EXR file holds deep data only; a BTF image is a flat image".into()));
+    };
+    let (w, h) = (header.layer_size.0, header.layer_size.1);
+    let side = hitex_core::texture::image::MAX_IMAGE_SIDE as usize;
+    if w == 0 || h == 0 || w > side || h > side {
+        return Err(fmt(format!("declared size {w}x{h} is outside 1..={side} per side")));
+    }
+    let names: Vec<String> = header.channels.list.iter().map(|c| c.name.to_string()).collect();
+    let short = |n: &str| n.rsplit('.').next().unwrap_or(n).to_string();
+    let find = |want: &str| names.iter().position(|n| short(n) == want);
+    enum Model {
+        Rgb([usize; 3]),
+        Xyz([usize; 3]),
+        Grey(usize),
+    }
+    let model = match (find("R"), find("G"), find("B"), find("X"), find("Y"), find("Z")) {
+        (Some(r), Some(g), Some(b), ..) => Model::Rgb([r, g, b]),
+        (.., Some(x), Some(y), Some(z)) => Model::Xyz([x, y, z]),
+        (None, None, None, None, Some(y), None) => Model::Grey(y),
+        _ => {
+            return Err(fmt(format!(
+                "the EXR channels are {}; a BTF image needs R, G and B, or X, Y and Z, or Y alone",
+                if names.is_empty() { "none".to_string() } else { names.join(", ") }
+            )));
+        }
+    };
+    let used: Vec<usize> = match model {
+        Model::Rgb(c) | Model::Xyz(c) => c.to_vec(),
+        Model::Grey(y) => vec![y],
+    };
+    for &c in &used {
+        let ch = &header.channels.list[c];
+        if (ch.sampling.0, ch.sampling.1) != (1, 1) {
+            return Err(fmt(format!(
+                "channel {} is subsampled {}x{}; BTF images need every channel at full resolution",
+                names[c], ch.sampling.0, ch.sampling.1
+            )));
+        }
+    }
+    crate::limits::check_cap(&format!("an EXR image of {w}x{h} texels"), Some(w as u64 * h as u64 * 24))
+        .map_err(fmt)?;
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .non_parallel()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| fmt(format!("cannot decode the EXR image: {e}")))?;
+    let layer = &image.layer_data;
+    let (w, h) = (layer.size.0, layer.size.1);
+    let list = &layer.channel_data.list;
+    let values = |want: &str| -> Result<Vec<f32>, IoError> {
+        let ch = list
+            .iter()
+            .find(|c| short(&c.name.to_string()) == want)
+            .ok_or_else(|| fmt(format!("channel {want} is declared but not decoded")))?;
+        let v: Vec<f32> = match &ch.sample_data {
+            FlatSamples::F16(v) => v.iter().map(|x| x.to_f32()).collect(),
+            FlatSamples::F32(v) => v.clone(),
+            FlatSamples::U32(v) => v.iter().map(|&x| x as f32).collect(),
+        };
+        if v.len() != w * h {
+            return Err(fmt(format!("channel {want} holds {} samples; {w}x{h} needs {}", v.len(), w * h)));
+        }
+        Ok(v)
+    };
+    // matrix to linear sRGB, if any
+    let (chans, matrix): ([Vec<f32>; 3], Option<[[f64; 3]; 3]>) = match model {
+        Model::Rgb(_) => {
+            let m = match image.attributes.chromaticities {
+                Some(c) => {
+                    let got = [
+                        [c.red.0 as f64, c.red.1 as f64],
+                        [c.green.0 as f64, c.green.1 as f64],
+                        [c.blue.0 as f64, c.blue.1 as f64],
+                        [c.white.0 as f64, c.white.1 as f64],
+                    ];
+                    let same = got.iter().flatten().zip(REC709.iter().flatten()).all(|(a, b)| (a - b).abs() < 1e-3);
+                    if same {
+                        None
+                    } else {
+                        let m = rgb_to_xyz(&got)
+                            .filter(|m| m.iter().flatten().all(|v| v.is_finite()))
+                            .ok_or_else(|| fmt(format!("the chromaticities attribute {got:?} is degenerate")))?;
+                        Some(mul3(&XYZ_TO_SRGB, &m))
+                    }
+                }
+                None => None,
+            };
+            ([values("R")?, values("G")?, values("B")?], m)
+        }
+        Model::Xyz(_) => ([values("X")?, values("Y")?, values("Z")?], Some(XYZ_TO_SRGB)),
+        Model::Grey(_) => {
+            let y = values("Y")?;
+            ([y.clone(), y.clone(), y], None)
+        }
+    };
+    let mut rgb = Vec::with_capacity(w * h * 3);
+    let mut clamped = 0u64;
+    for ((&r, &g), &b) in chans[0].iter().zip(&chans[1]).zip(&chans[2]) {
+        let c = [r, g, b];
+        let c = match &matrix {
+            Some(m) => {
+                let f = |r: usize| (0..3).map(|k| m[r][k] * c[k] as f64).sum::<f64>() as f32;
+                [f(0), f(1), f(2)]
+            }
+            None => c,
+        };
+        for v in c {
+            let ok = (0.0..=65504.0).contains(&v);
+            clamped += !ok as u64;
+            rgb.push(if v > 0.0 { v.min(65504.0) } else { 0.0 });
+        }
+    }
+    Ok(ExrImage { width: w as u32, height: h as u32, rgb, clamped })
+}
+
+/// Decodes an OpenEXR image as a BTF image set reads it: width, height and
+/// linear RGB with sRGB primaries (three values a texel, rows top to
+/// bottom), finite and in [0, 65504], and the number of values clamped
+/// into that range. See the module documentation for the channels read.
+pub fn decode_exr_image(bytes: &[u8], path: &Path) -> Result<(u32, u32, Vec<f32>, u64), IoError> {
+    let img = decode_exr(bytes, path)?;
+    Ok((img.width, img.height, img.rgb, img.clamped))
+}
+
 /// sRGB code → linear light.
 fn linear_lut() -> [f32; 256] {
     let mut t = [0.0; 256];
@@ -372,14 +609,22 @@ fn area_weights(src: usize, dst: usize) -> Vec<Vec<(usize, f32)>> {
         .collect()
 }
 
-/// Centre-crops an RGB8 image to a square and box-filters it to
-/// `size`×`size` in linear light (unchanged when already that size).
-fn fit(rgb: Vec<u8>, w: u32, h: u32, size: Option<u32>, lut: &[f32; 256]) -> Vec<u8> {
+/// Centre-crops an RGB image to a square and box-filters it to
+/// `size`×`size` in linear light (unchanged when already that size):
+/// `lin` decodes a stored value to linear light, `enc` encodes it back.
+fn fit<T: Copy + Default>(
+    rgb: Vec<T>,
+    w: u32,
+    h: u32,
+    size: Option<u32>,
+    lin: impl Fn(T) -> f32,
+    enc: impl Fn(f32) -> T,
+) -> Vec<T> {
     let Some(s) = size else { return rgb };
     let (w, h, s) = (w as usize, h as usize, s as usize);
     let c = w.min(h);
     let (x0, y0) = ((w - c) / 2, (h - c) / 2);
-    let crop: Vec<u8> = if c == w && c == h {
+    let crop: Vec<T> = if c == w && c == h {
         rgb
     } else {
         (0..c).flat_map(|y| rgb[((y0 + y) * w + x0) * 3..((y0 + y) * w + x0 + c) * 3].iter().copied()).collect()
@@ -394,17 +639,17 @@ fn fit(rgb: Vec<u8>, w: u32, h: u32, size: Option<u32>, lut: &[f32; 256]) -> Vec
         for (ox, ws) in wts.iter().enumerate() {
             for &(x, wt) in ws {
                 for ch in 0..3 {
-                    tmp[(y * s + ox) * 3 + ch] += wt * lut[crop[(y * c + x) * 3 + ch] as usize];
+                    tmp[(y * s + ox) * 3 + ch] += wt * lin(crop[(y * c + x) * 3 + ch]);
                 }
             }
         }
     }
-    let mut out = vec![0u8; s * s * 3];
+    let mut out = vec![T::default(); s * s * 3];
     for (oy, ws) in wts.iter().enumerate() {
         for ox in 0..s {
             for ch in 0..3 {
                 let v: f32 = ws.iter().map(|&(y, wt)| wt * tmp[(y * s + ox) * 3 + ch]).sum();
-                out[(oy * s + ox) * 3 + ch] = linear_to_srgb_u8(v);
+                out[(oy * s + ox) * 3 + ch] = enc(v);
             }
         }
     }
@@ -526,17 +771,27 @@ pub fn import_image_set(
     // names → kept entries (light, view)
     let mut entries: Vec<(Listed, Dir, Dir)> = Vec::new();
     let mut seen: HashMap<(Key, Key), usize> = HashMap::new();
+    // the first EXR and the first 8-bit image: a set is one or the other
+    let (mut first_exr, mut first_ldr): (Option<String>, Option<String>) = (None, None);
     for item in listed {
-        match parse_name(&item.base) {
+        let mut name = parse_name(&item.base);
+        if name == Name::Other
+            && !item.base.starts_with('.')
+            && let Some(folder) = item.shown.rsplit(['/', '\\']).nth(1)
+        {
+            // UTIA: the view angles in the folder's name (tv030_pv120/tl015_pl060.exr)
+            name = parse_name(&format!("{folder}_{}", item.base));
+        }
+        match name {
             Name::Other => report.ignored.push(item.shown),
-            Name::Exr => {
-                return Err(IoError::Format {
-                    path: Source::err_path(path, &item),
-                    message: "EXR images are not supported (this build reads PNG and JPEG); convert the set to PNG"
-                        .into(),
-                });
-            }
-            Name::Image([tl, pl, tv, pv]) => {
+            Name::Image([tl, pl, tv, pv]) | Name::Exr([tl, pl, tv, pv]) => {
+                let first = if matches!(name, Name::Exr(_)) { &mut first_exr } else { &mut first_ldr };
+                first.get_or_insert_with(|| item.shown.clone());
+                if let (Some(e), Some(l)) = (&first_exr, &first_ldr) {
+                    return Err(fmt(format!(
+                        "the set mixes OpenEXR and 8-bit images ({e} and {l}); import one kind at a time"
+                    )));
+                }
                 if !(0.0..90.0).contains(&tl) || !(0.0..90.0).contains(&tv) {
                     report.ignored.push(item.shown);
                     continue;
@@ -641,26 +896,46 @@ pub fn import_image_set(
         check_shape(s, s)?;
     }
 
-    // read the images that are used
+    // read the images that are used: 8-bit sRGB, or linear f32 from EXR
+    let hdr = first_exr.is_some();
+    report.hdr = hdr;
     let lut = linear_lut();
     let total = unique.len() + d * d;
     let mut slot_of = vec![usize::MAX; entries.len()];
     let mut store: Vec<u8> = Vec::new();
+    let mut store_hdr: Vec<f32> = Vec::new();
     let mut first: Option<(u32, u32, PathBuf)> = None;
     let (mut sw, mut sh) = (0u32, 0u32);
     for (k, &e) in unique.iter().enumerate() {
         let item = &entries[e].0;
         let at = Source::err_path(path, item);
         let bytes = source.read(path, item)?;
-        let (w, h, rgb) = decode_rgb(&bytes, &at)?;
+        let (w, h, rgb, linear) = if hdr {
+            let img = decode_exr(&bytes, &at)?;
+            if img.clamped > 0 {
+                report.clamped += img.clamped;
+                report.clamped_first.get_or_insert_with(|| item.shown.clone());
+            }
+            (img.width, img.height, Vec::new(), img.rgb)
+        } else {
+            let (w, h, rgb) = decode_rgb(&bytes, &at)?;
+            (w, h, rgb, Vec::new())
+        };
         match &first {
             None => {
                 (sw, sh) = size.map_or((w, h), |s| (s, s));
                 check_shape(sw, sh)?;
-                let claim = crate::limits::product(&[unique.len() as u64, sw as u64, sh as u64, 3]);
+                // 8-bit: 3 bytes a texel; HDR: 12 read, and 12 a texel of the linear BTF
+                let per = if hdr { 12 } else { 3 };
+                let n = unique.len() as u64 + if hdr { (d * d) as u64 } else { 0 };
+                let claim = crate::limits::product(&[n, sw as u64, sh as u64, per]);
                 crate::limits::check_cap(&format!("{} images of {sw}x{sh} texels", unique.len()), claim)
                     .map_err(fmt)?;
-                store.reserve_exact(unique.len() * sw as usize * sh as usize * 3);
+                if hdr {
+                    store_hdr.reserve_exact(unique.len() * sw as usize * sh as usize * 3);
+                } else {
+                    store.reserve_exact(unique.len() * sw as usize * sh as usize * 3);
+                }
                 first = Some((w, h, at.clone()));
             }
             Some((w0, h0, p0)) if (*w0, *h0) != (w, h) => {
@@ -675,22 +950,40 @@ pub fn import_image_set(
             Some(_) => {}
         }
         slot_of[e] = k;
-        store.extend_from_slice(&fit(rgb, w, h, size, &lut));
+        if hdr {
+            store_hdr.extend_from_slice(&fit(linear, w, h, size, |v| v, |v| v));
+        } else {
+            store.extend_from_slice(&fit(rgb, w, h, size, |c| lut[c as usize], linear_to_srgb_u8));
+        }
         progress(k + 1, total);
     }
     let done = unique.len();
     let n = sw as usize * sh as usize * 3;
     let image = |e: usize| &store[slot_of[e] * n..(slot_of[e] + 1) * n];
+    let image_hdr = |e: usize| &store_hdr[slot_of[e] * n..(slot_of[e] + 1) * n];
     let mut btf = Btf::zeroed(target.clone(), sw, sh).map_err(|e| IoError::from(e).in_file(path))?;
+    // the HDR BTF's linear values, image by image
+    let mut linear_out: Vec<f32> = if hdr { vec![0.0; d * d * n] } else { Vec::new() };
+    let to_btf = |btf: Btf, linear_out: Vec<f32>| -> Result<Btf, IoError> {
+        if hdr {
+            Btf::from_linear(target.clone(), sw, sh, &linear_out).map_err(|e| IoError::from(e).in_file(path))
+        } else {
+            Ok(btf)
+        }
+    };
 
     if direct.is_some() {
         for (idx, &e) in needed.iter().enumerate() {
-            btf.image_mut(idx / d, idx % d).copy_from_slice(image(e));
+            if hdr {
+                linear_out[idx * n..(idx + 1) * n].copy_from_slice(image_hdr(e));
+            } else {
+                btf.image_mut(idx / d, idx % d).copy_from_slice(image(e));
+            }
             progress(done + idx + 1, total);
         }
         report.resampled = false;
         report.method = format!("direct: the images lie on the grid {}; no resampling", describe_grid(&target));
-        return Ok((btf, report));
+        return Ok((to_btf(btf, linear_out)?, report));
     }
 
     // resampling
@@ -745,18 +1038,32 @@ pub fn import_image_set(
             }
             acc.iter_mut().for_each(|a| *a = 0.0);
             for &(e, w) in &blend {
-                for (a, &c) in acc.iter_mut().zip(image(e)) {
-                    *a += w * lut[c as usize];
+                if hdr {
+                    for (a, &c) in acc.iter_mut().zip(image_hdr(e)) {
+                        *a += w * c;
+                    }
+                } else {
+                    for (a, &c) in acc.iter_mut().zip(image(e)) {
+                        *a += w * lut[c as usize];
+                    }
                 }
             }
             let inv = if wsum > 0.0 { 1.0 / wsum } else { 0.0 };
-            for (o, &a) in btf.image_mut(v, l).iter_mut().zip(&acc) {
-                *o = linear_to_srgb_u8(a * inv);
+            if hdr {
+                let i = v * d + l;
+                for (o, &a) in linear_out[i * n..(i + 1) * n].iter_mut().zip(&acc) {
+                    *o = a * inv;
+                }
+            } else {
+                for (o, &a) in btf.image_mut(v, l).iter_mut().zip(&acc) {
+                    *o = linear_to_srgb_u8(a * inv);
+                }
             }
             progress(done + v * d + l + 1, total);
         }
     }
     report.resampled = true;
+    let btf = to_btf(btf, linear_out)?;
     report.method = format!(
         "resampled onto the grid {} by inverse-distance weighting in linear light: per target (view, light), the \
          {NEIGHBOURS} nearest measured views × {NEIGHBOURS} nearest measured lights by angle between unit vectors, \
@@ -791,6 +1098,36 @@ pub fn export_image_set_with(
     convention: Convention,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<usize, IoError> {
+    export_image_set_as(btf, dir, convention, SetFormat::Png, progress)
+}
+
+/// One image of `btf` as an OpenEXR file in memory: half-float linear RGB.
+fn exr_bytes(btf: &Btf, view: usize, light: usize) -> Result<Vec<u8>, String> {
+    use exr::prelude::*;
+    let (w, h) = (btf.width() as usize, btf.height() as usize);
+    let half: Vec<u16> = match btf.image_half(view, light) {
+        Some(h) => h.to_vec(),
+        None => btf.image(view, light).iter().map(|&c| half_bits(srgb_to_linear(c as f32 / 255.0))).collect(),
+    };
+    let channel = |name: &str, k: usize| {
+        let v: Vec<f16> = half.iter().skip(k).step_by(3).map(|&b| f16::from_bits(b)).collect();
+        AnyChannel::new(name, FlatSamples::F16(v))
+    };
+    let channels = AnyChannels::sort(vec![channel("R", 0), channel("G", 1), channel("B", 2)].into());
+    let layer = Layer::new((w, h), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, channels);
+    let mut out = std::io::Cursor::new(Vec::new());
+    Image::from_layer(layer).write().non_parallel().to_buffered(&mut out).map_err(|e| e.to_string())?;
+    Ok(out.into_inner())
+}
+
+/// [`export_image_set_with`] in a chosen image format.
+pub fn export_image_set_as(
+    btf: &Btf,
+    dir: &Path,
+    convention: Convention,
+    format: SetFormat,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<usize, IoError> {
     let g = btf.grid();
     let theta: Vec<u32> = g.theta_deg().iter().map(|t| t.round() as u32).collect();
     let phi: Vec<u32> = (0..g.phi_count()).map(|j| g.phi_deg(j).round() as u32 % 360).collect();
@@ -811,15 +1148,21 @@ pub fn export_image_set_with(
     let mut count = 0;
     for v in 0..g.directions() {
         for l in 0..g.directions() {
-            let name = convention.file_name(theta[l / pc], phi[l % pc], theta[v / pc], phi[v % pc]);
+            let name = convention.file_name_as(theta[l / pc], phi[l % pc], theta[v / pc], phi[v % pc], format);
             let path = dir.join(name);
-            let mut buf = Vec::new();
-            {
-                use image::ImageEncoder;
-                image::codecs::png::PngEncoder::new(&mut buf)
-                    .write_image(btf.image(v, l), w, h, image::ExtendedColorType::Rgb8)
-                    .map_err(|e| IoError::Write { path: path.clone(), message: e.to_string() })?;
-            }
+            let buf = match format {
+                SetFormat::Png => {
+                    use image::ImageEncoder;
+                    let mut buf = Vec::new();
+                    image::codecs::png::PngEncoder::new(&mut buf)
+                        .write_image(btf.image(v, l), w, h, image::ExtendedColorType::Rgb8)
+                        .map_err(|e| IoError::Write { path: path.clone(), message: e.to_string() })?;
+                    buf
+                }
+                SetFormat::Exr => {
+                    exr_bytes(btf, v, l).map_err(|message| IoError::Write { path: path.clone(), message })?
+                }
+            };
             write_atomic(&path, &buf)?;
             count += 1;
             progress(count, g.directions() * g.directions());
@@ -873,7 +1216,7 @@ mod tests {
         assert_eq!(parse_name("TL000_PL000_TV075_PV345.PNG"), Name::Image([0.0, 0.0, 75.0, 345.0]));
         assert_eq!(parse_name("wool_tv030_pv120_tl015_pl060.jpeg"), Name::Image([15.0, 60.0, 30.0, 120.0]));
         assert_eq!(parse_name("tl15.5 pl0 tv0 pv0.png"), Name::Image([15.5, 0.0, 0.0, 0.0]));
-        assert_eq!(parse_name("tl000_pl000_tv000_pv000.exr"), Name::Exr);
+        assert_eq!(parse_name("tl000_pl000_tv000_pv000.exr"), Name::Exr([0.0; 4]));
         for bad in [
             "readme.txt",
             "tl000 pl000 tv000.png",
@@ -991,7 +1334,7 @@ mod tests {
         let (small, _) = import_image_set(&d.join("set"), None, Some(2), &quiet).unwrap();
         assert_eq!((small.width(), small.height()), (2, 2));
         let lut = linear_lut();
-        let want = fit(set[0].2.clone(), 4, 4, Some(2), &lut);
+        let want = fit(set[0].2.clone(), 4, 4, Some(2), |c: u8| lut[c as usize], linear_to_srgb_u8);
         let mean = (lut[set[0].2[0] as usize]
             + lut[set[0].2[3] as usize]
             + lut[set[0].2[12] as usize]
@@ -1039,10 +1382,10 @@ mod tests {
         let e = import_image_set(&set, None, None, &quiet).unwrap_err().to_string();
         assert!(e.contains("tl000_pl000_tv030_pv180.png") && e.contains("same size"), "{e}");
         std::fs::remove_file(&f).unwrap();
-        // EXR
+        // an EXR among PNGs
         std::fs::write(set.join("tl000_pl000_tv030_pv180.exr"), b"v/1\x01").unwrap();
         let e = import_image_set(&set, None, None, &quiet).unwrap_err().to_string();
-        assert!(e.contains(".exr") && e.contains("convert"), "{e}");
+        assert!(e.contains("mixes OpenEXR and 8-bit") && e.contains("tl000_pl000_tv030_pv180.exr"), "{e}");
         // nothing usable; not a folder or zip; missing path; absurd size
         let empty = d.join("empty");
         std::fs::create_dir_all(&empty).unwrap();
@@ -1057,6 +1400,220 @@ mod tests {
         irregular_set(&set2);
         let e = import_image_set(&set2, None, Some(1024), &quiet).unwrap_err().to_string();
         assert!(e.contains("too large"), "{e}");
+    }
+
+    /// An analytic HDR value of texel `i` of image (view, light): above 1
+    /// for many texels, never representable in 8 bits.
+    fn hdr_value(view: usize, light: usize, i: usize) -> f32 {
+        0.003 + 0.37 * (i % 7) as f32 + 1.9 * light as f32 / 11.0 + 0.011 * view as f32 + 0.5 * (i % 3) as f32
+    }
+
+    fn hdr_btf() -> Btf {
+        let grid = AngularGrid::new(vec![0.0, 30.0, 60.0], 4).unwrap();
+        let d = grid.directions();
+        let n = 4 * 4 * 3;
+        let linear: Vec<f32> = (0..d * d * n).map(|k| hdr_value(k / n / d, k / n % d, k % n)).collect();
+        Btf::from_linear(grid, 4, 4, &linear).unwrap()
+    }
+
+    /// An EXR file of named channels from f32 planes (stored as `half` or f32).
+    fn exr_file(w: usize, h: usize, planes: &[(&str, Vec<f32>)], half: bool) -> Vec<u8> {
+        use exr::prelude::*;
+        let chans: Vec<AnyChannel<FlatSamples>> = planes
+            .iter()
+            .map(|(n, v)| {
+                let data = if half {
+                    FlatSamples::F16(v.iter().map(|&x| f16::from_f32(x)).collect())
+                } else {
+                    FlatSamples::F32(v.clone())
+                };
+                AnyChannel::new(*n, data)
+            })
+            .collect();
+        let layer =
+            Layer::new((w, h), LayerAttributes::default(), Encoding::FAST_LOSSLESS, AnyChannels::sort(chans.into()));
+        let mut out = std::io::Cursor::new(Vec::new());
+        Image::from_layer(layer).write().to_buffered(&mut out).unwrap();
+        out.into_inner()
+    }
+
+    #[test]
+    fn btf_exr_sets_round_trip_at_half_precision() {
+        let btf = hdr_btf();
+        assert!(btf.is_hdr());
+        let h = btf.hdr().unwrap();
+        // values above 1: the display copy is scaled down by the 99.9th percentile
+        assert!(h.ldr_scale < 0.5, "{}", h.ldr_scale);
+        let d = tmpdir("exr-rt");
+        let set = d.join("set");
+        let n = export_image_set_as(&btf, &set, Convention::Utia, SetFormat::Exr, &mut |_, _| {}).unwrap();
+        assert_eq!(n, 144);
+        assert!(set.join("tl030_pl090_tv060_pv270.exr").is_file());
+        let (back, rep) = import_image_set(&set, None, None, &quiet).unwrap();
+        assert!(rep.hdr && rep.clamped == 0 && !rep.resampled, "{rep:?}");
+        // the half floats come back bit for bit, so the values are those written to half precision
+        assert_eq!(back.hdr(), btf.hdr());
+        assert_eq!(back, btf);
+        let g = btf.grid().directions();
+        for (k, &hb) in back.hdr().unwrap().half.iter().enumerate() {
+            let want = hdr_value(k / 48 / g, k / 48 % g, k % 48);
+            let got = hitex_core::btf::dataset::half_value(hb);
+            assert!((got - want).abs() <= want * 4.9e-4, "{k}: {got} vs {want}");
+        }
+        // PNG export writes the display copy; 8-bit BTFs export to EXR decoded from sRGB
+        let png_set = d.join("png");
+        export_image_set_as(&btf, &png_set, Convention::Utia, SetFormat::Png, &mut |_, _| {}).unwrap();
+        let (ldr, rep) = import_image_set(&png_set, None, None, &quiet).unwrap();
+        assert!(!rep.hdr && !ldr.is_hdr());
+        assert_eq!(ldr.texels(), btf.texels());
+        let small = small_btf();
+        let e8 = d.join("e8");
+        export_image_set_as(&small, &e8, Convention::Ubo, SetFormat::Exr, &mut |_, _| {}).unwrap();
+        let (lifted, _) = import_image_set(&e8, None, None, &quiet).unwrap();
+        assert!(lifted.is_hdr());
+        assert_eq!(lifted.texels(), small.texels(), "sRGB → half → sRGB keeps every 8-bit code");
+    }
+
+    #[test]
+    fn btf_exr_float_xyz_grey_and_utia_folders() {
+        let grid = AngularGrid::new(vec![0.0, 45.0], 2).unwrap();
+        let d = tmpdir("exr-kinds");
+        let (w, h) = (3, 2);
+        let rgb_of = |k: usize| [0.2 + 0.1 * k as f32, 1.5 + 0.05 * k as f32, 0.7];
+        // XYZ of a linear sRGB colour (the inverse of the reader's matrix)
+        let to_xyz = |c: [f32; 3]| {
+            let m = [
+                [0.4124564, 0.3575761, 0.1804375],
+                [0.2126729, 0.7151522, 0.0721750],
+                [0.0193339, 0.119192, 0.9503041],
+            ];
+            [0, 1, 2].map(|r| m[r][0] * c[0] + m[r][1] * c[1] + m[r][2] * c[2])
+        };
+        for kind in ["float", "xyz", "grey"] {
+            let set = d.join(kind);
+            for (vi, &(tv, pv)) in [(0, 0), (45, 0), (45, 180)].iter().enumerate() {
+                let _ = vi;
+                // UTIA: one folder per view, the file names carry the light
+                let folder = set.join(format!("tv{tv:03}_pv{pv:03}"));
+                std::fs::create_dir_all(&folder).unwrap();
+                for &(tl, pl) in &[(0, 0), (45, 0), (45, 180)] {
+                    let k = (tv + pv + tl + pl) as usize / 45;
+                    let c = rgb_of(k);
+                    let planes: Vec<(&str, Vec<f32>)> = match kind {
+                        "float" => vec![("R", vec![c[0]; w * h]), ("G", vec![c[1]; w * h]), ("B", vec![c[2]; w * h])],
+                        "xyz" => {
+                            let x = to_xyz(c);
+                            vec![("X", vec![x[0]; w * h]), ("Y", vec![x[1]; w * h]), ("Z", vec![x[2]; w * h])]
+                        }
+                        _ => vec![("Y", vec![c[1]; w * h])],
+                    };
+                    std::fs::write(
+                        folder.join(format!("tl{tl:03}_pl{pl:03}.exr")),
+                        exr_file(w, h, &planes, kind != "float"),
+                    )
+                    .unwrap();
+                }
+            }
+            let (btf, rep) = import_image_set(&set, Some(grid.clone()), None, &quiet).unwrap();
+            // θ = 0 is on the grid once per azimuth: filled by exact copies (a resampling)
+            assert!(rep.hdr && rep.ignored.is_empty(), "{kind}: {rep:?}");
+            assert_eq!(rep.images, 9);
+            let g = btf.grid();
+            for (v, &(tv, pv)) in [(0u32, 0u32), (45, 0), (45, 180)].iter().enumerate() {
+                for (l, &(tl, pl)) in [(0u32, 0u32), (45, 0), (45, 180)].iter().enumerate() {
+                    let _ = (v, l);
+                    let dir = |t: u32, p: u32| if t == 0 { 0 } else { g.phi_count() + (p / 180) as usize };
+                    let got = btf.texel_linear(dir(tv, pv), dir(tl, pl), 2, 1);
+                    let c = rgb_of((tv + pv + tl + pl) as usize / 45);
+                    let want = if kind == "grey" { [c[1]; 3] } else { c };
+                    for ch in 0..3 {
+                        assert!(
+                            (got[ch] - want[ch]).abs() <= 4e-3 * want[ch].max(0.1),
+                            "{kind} {ch}: {got:?} vs {want:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn btf_exr_bad_input_is_refused_or_clamped_and_said() {
+        let d = tmpdir("exr-bad");
+        let grid = AngularGrid::new(vec![0.0], 1).unwrap();
+        let one = |set: &Path, planes: &[(&str, Vec<f32>)], w: usize, h: usize| {
+            std::fs::create_dir_all(set).unwrap();
+            std::fs::write(set.join("tl000_pl000_tv000_pv000.exr"), exr_file(w, h, planes, true)).unwrap();
+        };
+        // missing channels: named
+        let set = d.join("missing");
+        one(&set, &[("R", vec![1.0; 4]), ("G", vec![1.0; 4])], 2, 2);
+        let e = import_image_set(&set, Some(grid.clone()), None, &quiet).unwrap_err().to_string();
+        assert!(
+            e.contains("tl000_pl000_tv000_pv000.exr") && e.contains("G, R") && e.contains("needs R, G and B"),
+            "{e}"
+        );
+        // NaN, infinite and negative values: clamped and counted
+        let set = d.join("nan");
+        one(
+            &set,
+            &[("R", vec![f32::NAN, 1.0, -2.0, 0.5]), ("G", vec![f32::INFINITY, 0.0, 0.0, 0.0]), ("B", vec![0.25; 4])],
+            2,
+            2,
+        );
+        let (btf, rep) = import_image_set(&set, Some(grid.clone()), None, &quiet).unwrap();
+        assert_eq!(rep.clamped, 3, "{rep:?}");
+        assert_eq!(rep.clamped_first.as_deref(), Some("tl000_pl000_tv000_pv000.exr"));
+        assert_eq!(btf.texel_linear(0, 0, 0, 0), [0.0, 65504.0, 0.25]);
+        assert_eq!(btf.texel_linear(0, 0, 0, 1)[0], 0.0);
+        // mixed sizes
+        let set = d.join("sizes");
+        let g2 = AngularGrid::new(vec![0.0, 40.0], 1).unwrap();
+        std::fs::create_dir_all(&set).unwrap();
+        let rgb = |n: usize| vec![("R", vec![0.5; n]), ("G", vec![0.5; n]), ("B", vec![0.5; n])];
+        for (i, (tl, tv)) in [(0, 0), (0, 40), (40, 0), (40, 40)].iter().enumerate() {
+            let (w, h) = if i == 3 { (3, 2) } else { (2, 2) };
+            std::fs::write(set.join(format!("tl{tl:03}_pl000_tv{tv:03}_pv000.exr")), exr_file(w, h, &rgb(w * h), true))
+                .unwrap();
+        }
+        let e = import_image_set(&set, Some(g2), None, &quiet).unwrap_err().to_string();
+        assert!(e.contains("tl040_pl000_tv040_pv000.exr") && e.contains("same size"), "{e}");
+        // not an EXR at all; a truncated one
+        let set = d.join("junk");
+        std::fs::create_dir_all(&set).unwrap();
+        std::fs::write(set.join("tl000_pl000_tv000_pv000.exr"), b"v/1\x01junk").unwrap();
+        let e = import_image_set(&set, Some(grid.clone()), None, &quiet).unwrap_err().to_string();
+        assert!(e.contains("tl000_pl000_tv000_pv000.exr") && e.contains("OpenEXR"), "{e}");
+        let good = exr_file(4, 4, &rgb(16), true);
+        for cut in [20, good.len() / 2, good.len() - 3] {
+            std::fs::write(set.join("tl000_pl000_tv000_pv000.exr"), &good[..cut]).unwrap();
+            let e = import_image_set(&set, Some(grid.clone()), None, &quiet).unwrap_err().to_string();
+            assert!(e.contains("tl000_pl000_tv000_pv000.exr"), "{cut}: {e}");
+        }
+    }
+
+    #[test]
+    fn btf_exr_sets_resample_in_linear_light() {
+        // an irregular HDR set: the blend is in linear values, above 1 kept
+        let d = tmpdir("exr-resample");
+        let set = d.join("set");
+        std::fs::create_dir_all(&set).unwrap();
+        let rgb = |v: f32| vec![("R", vec![v; 4]), ("G", vec![v; 4]), ("B", vec![v; 4])];
+        for (tv, pv) in [(0, 0), (20, 0), (20, 120), (20, 240)] {
+            for (tl, pl) in [(0, 0), (20, 0), (20, 120), (20, 240)] {
+                std::fs::write(
+                    set.join(format!("tl{tl:03}_pl{pl:03}_tv{tv:03}_pv{pv:03}.exr")),
+                    exr_file(2, 2, &rgb(4.0), true),
+                )
+                .unwrap();
+            }
+        }
+        let target = AngularGrid::new(vec![0.0, 10.0], 4).unwrap();
+        let (btf, rep) = import_image_set(&set, Some(target), None, &quiet).unwrap();
+        assert!(rep.resampled && rep.hdr, "{rep:?}");
+        for h in &btf.hdr().unwrap().half {
+            assert_eq!(hitex_core::btf::dataset::half_value(*h), 4.0);
+        }
     }
 
     #[test]

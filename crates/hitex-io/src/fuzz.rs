@@ -44,11 +44,13 @@ pub enum Target {
     Step,
     /// Point sets: JSON when the first byte is `{`, XYZ text otherwise.
     Points,
+    /// OpenEXR images of BTF image sets, decoded to linear sRGB.
+    Exr,
 }
 
 impl Target {
     /// Every target.
-    pub const ALL: [Target; 15] = [
+    pub const ALL: [Target; 16] = [
         Target::Iges,
         Target::ObjFreeform,
         Target::NurbsJson,
@@ -64,6 +66,7 @@ impl Target {
         Target::Image,
         Target::Step,
         Target::Points,
+        Target::Exr,
     ];
 
     /// The target's name: its folder under `fuzz/` and its fuzz binary.
@@ -84,6 +87,7 @@ impl Target {
             Target::Image => "image",
             Target::Step => "step",
             Target::Points => "points",
+            Target::Exr => "exr",
         }
     }
 
@@ -151,6 +155,7 @@ pub fn run(target: Target, data: &[u8]) -> bool {
         Target::Image => crate::decode_image(data, Path::new("fuzz.png"), ColorSpace::Srgb).is_ok(),
         Target::Step => crate::step::parse_step(data, "fuzz.stp", &crate::step::StepOptions::default()).is_ok(),
         Target::Points => crate::points::parse_points(&text(), data.first() == Some(&b'{')).is_ok(),
+        Target::Exr => crate::btf_images::decode_exr_image(data, Path::new("fuzz.exr")).is_ok(),
     }
 }
 

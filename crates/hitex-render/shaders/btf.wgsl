@@ -12,7 +12,7 @@ struct Frame {
     background: vec4<f32>,
     tex_size: vec4<f32>,    // codebook width, height, layers
     sizes: vec4<u32>,       // index width, height, θ count, φ count
-    tile: vec4<u32>,        // tile width, height, tiles per row
+    tile: vec4<u32>,        // tile width, height, tiles per row; tone map
     strides: array<vec4<u32>, 2>,
     theta: array<vec4<f32>, 16>, // polar angles in degrees
 }
@@ -235,6 +235,18 @@ fn index_taps(t_in: f32, size: u32) -> Taps {
 // ---- output ----
 
 
+// Twin of hitex_core::texture::ToneMap::apply: 0 none, 1 Reinhard, 2 ACES fit.
+fn tone_map(c: vec3<f32>, mode: u32) -> vec3<f32> {
+    let x = max(c, vec3<f32>(0.0));
+    if mode == 1u {
+        return x / (vec3<f32>(1.0) + x);
+    }
+    if mode == 2u {
+        return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), vec3<f32>(0.0), vec3<f32>(1.0));
+    }
+    return x;
+}
+
 @fragment
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     let p = in.world;
@@ -267,6 +279,6 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     acc = acc + fetch_corner(e10.x, e10.y, l) * (tx.f * (1.0 - ty.f));
     acc = acc + fetch_corner(e01.x, e01.y, l) * ((1.0 - tx.f) * ty.f);
     acc = acc + fetch_corner(e11.x, e11.y, l) * (tx.f * ty.f);
-    let c = acc * frame.light.w;
+    let c = tone_map(acc * frame.light.w, frame.tile.w);
     return vec4<f32>(linear_to_srgb(c.x), linear_to_srgb(c.y), linear_to_srgb(c.z), 1.0);
 }

@@ -8,6 +8,7 @@ use hitex_core::btf::index::IndexMap;
 use hitex_core::btf::{AngularGrid, Btf, Codebook, Layout};
 use hitex_core::nurbs::NurbsSurface;
 use hitex_core::scene::{Camera, Mesh};
+use hitex_core::texture::ToneMap;
 use hitex_core::texture::bc1::{self, Bc1Encoder};
 
 /// Largest θ count the shaders take (uniform array of 64).
@@ -199,7 +200,7 @@ pub struct BtfFrame {
     pub tex_size: [f32; 4],
     /// Index map width, height; θ count; φ count.
     pub sizes: [u32; 4],
-    /// Tile width, height, tiles per row; unused.
+    /// Tile width, height, tiles per row; tone map ([`ToneMap::code`]).
     pub tile: [u32; 4],
     /// Tile-index strides of the six axes (u, v, θc, φc, θl, φl), padded.
     pub strides: [[u32; 4]; 2],
@@ -224,7 +225,9 @@ pub struct PreparedBtf {
     pub bc1: Option<Vec<u8>>,
     /// The codebook's texels decoded to linear RGB in 16-bit fixed point
     /// ([`Codebook::linear_texels16`]): the CPU twin's copy of what the
-    /// GPU's sRGB (and BC1) decoder feeds its filter.
+    /// GPU's sRGB (and BC1) decoder feeds its filter. For an HDR BTF, the
+    /// linear half floats themselves ([`Codebook::half`]), as the GPU's
+    /// `Rgba16Float` texture holds them.
     pub linear: Vec<u64>,
     /// The index map.
     pub index: IndexMap,
@@ -234,6 +237,8 @@ pub struct PreparedBtf {
     pub background: Vec3,
     /// Scale of the codebook's radiance.
     pub exposure: f32,
+    /// The tone map applied after the exposure, before the sRGB encoding.
+    pub tone_map: ToneMap,
 }
 
 impl PreparedBtf {
@@ -259,6 +264,11 @@ impl PreparedBtf {
         if index.width == 0 || index.height == 0 || index.entries.len() != (index.width * index.height) as usize {
             return Err(RenderError::Invalid("the index map is empty or inconsistent".into()));
         }
+        if btf.is_hdr() && bc1.is_some() {
+            return Err(RenderError::Invalid(
+                "BC1 holds 8-bit colours and this BTF is HDR (half floats); render it uncompressed".into(),
+            ));
+        }
         let mut codebook = Codebook::build(btf, layout).map_err(invalid)?;
         let blocks = match bc1 {
             Some(enc) => {
@@ -270,7 +280,7 @@ impl PreparedBtf {
             }
             None => None,
         };
-        let linear = codebook.linear_texels16();
+        let linear = if codebook.is_hdr() { codebook.half.clone() } else { codebook.linear_texels16() };
         Ok(Self {
             linear,
             id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
@@ -282,12 +292,18 @@ impl PreparedBtf {
             grid: btf.grid().clone(),
             background: Vec3::new(0.02, 0.02, 0.025),
             exposure: 1.0,
+            tone_map: ToneMap::None,
         })
     }
 
     /// Identity of this content (GPU uploads are cached by it).
     pub fn id(&self) -> u64 {
         self.id
+    }
+
+    /// Whether the codebook holds linear half floats (an HDR BTF).
+    pub fn is_hdr(&self) -> bool {
+        self.codebook.is_hdr()
     }
 
     /// The layout.
@@ -311,7 +327,7 @@ impl PreparedBtf {
             background: self.background.extend(1.0).to_array(),
             tex_size: [cb.width as f32, cb.height as f32, cb.depth as f32, 0.0],
             sizes: [self.index.width, self.index.height, self.grid.theta_count() as u32, self.grid.phi_count() as u32],
-            tile: [cb.tile_w, cb.tile_h, cb.tile_cols, 0],
+            tile: [cb.tile_w, cb.tile_h, cb.tile_cols, self.tone_map.code()],
             strides: [[s[0], s[1], s[2], s[3]], [s[4], s[5], 0, 0]],
             theta,
         }

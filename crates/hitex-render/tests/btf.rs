@@ -11,6 +11,7 @@ use hitex_core::btf::synth::{Material, SynthOptions, synthesize};
 use hitex_core::btf::{AngularGrid, Btf, Layout};
 use hitex_core::nurbs::NurbsSurface;
 use hitex_core::scene::Camera;
+use hitex_core::texture::ToneMap;
 use hitex_core::texture::bc1::Bc1Encoder;
 use hitex_render::btf::{BtfSurface, PreparedBtf};
 use hitex_render::cpu::btf::{BtfProgram, varyings};
@@ -28,6 +29,24 @@ fn small_btf() -> &'static Btf {
         let opts = SynthOptions { grid, size: 8, supersample: 1, exposure: 0.85 };
         synthesize(Material::Woven, &opts, &|_| {}).unwrap()
     })
+}
+
+/// `small_btf`'s linear values × 6 as an HDR BTF (half floats, most above 1).
+fn hdr_btf() -> &'static Btf {
+    static B: OnceLock<Btf> = OnceLock::new();
+    B.get_or_init(|| {
+        let b = small_btf();
+        let linear: Vec<f32> =
+            b.texels().iter().map(|&c| 6.0 * hitex_core::texture::srgb_to_linear(c as f32 / 255.0)).collect();
+        Btf::from_linear(b.grid().clone(), b.width(), b.height(), &linear).unwrap()
+    })
+}
+
+fn prepared_hdr(layout: Layout, tone: ToneMap, exposure: f32) -> PreparedBtf {
+    let mut p = PreparedBtf::new(hdr_btf(), layout, None, index(), BtfSurface::quad(2.0, 2.0)).unwrap();
+    p.tone_map = tone;
+    p.exposure = exposure;
+    p
 }
 
 fn index() -> IndexMap {
@@ -94,6 +113,38 @@ fn gpu_matches_cpu_for_every_layout() {
 }
 
 #[test]
+fn hdr_btf_keeps_its_range_on_both_backends() {
+    assert!(hdr_btf().hdr().unwrap().ldr_scale < 0.5);
+    let clipped = |f: &Frame| f.rgba.chunks_exact(4).filter(|p| p[..3].contains(&255)).count();
+    for layout in Layout::ALL {
+        // exposure 1/6 undoes the scale: the 8-bit BTF's image, to half precision
+        let hdr = cpu(&prepared_hdr(layout, ToneMap::None, 1.0 / 6.0));
+        let ldr = cpu(&prepared(layout, false));
+        assert_images(&format!("btf-hdr-{}", layout.name()), &hdr, &ldr, LAYOUTS_AGREE);
+    }
+    // at exposure 1 the highlights clip without a tone map, never with Reinhard's
+    let none = cpu(&prepared_hdr(Layout::F, ToneMap::None, 1.0));
+    let aces = cpu(&prepared_hdr(Layout::F, ToneMap::Aces, 1.0));
+    let reinhard = cpu(&prepared_hdr(Layout::F, ToneMap::Reinhard, 1.0));
+    let (n, a, r) = (clipped(&none), clipped(&aces), clipped(&reinhard));
+    assert!(n > (W * H / 8) as usize && a < n / 2 && r == 0, "clipped pixels: none {n}, aces {a}, reinhard {r}");
+    // BC1 holds 8-bit colours: an HDR BTF is refused, not silently clamped
+    let e = PreparedBtf::new(hdr_btf(), Layout::F, Some(Bc1Encoder::Ispc), index(), BtfSurface::quad(2.0, 2.0))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("HDR"), "{e}");
+    let Some(mut gpu) = gpu_or_skip("hdr_btf_keeps_its_range_on_both_backends (GPU half)") else { return };
+    for layout in Layout::ALL {
+        for tone in ToneMap::ALL {
+            let p = prepared_hdr(layout, tone, 0.7);
+            let c = cpu(&p);
+            let g = gpu.render_btf(&p, &camera(), LIGHT, W, H).unwrap();
+            assert_images(&format!("btf-gpu-hdr-{}-{}", layout.name(), tone.name()), &g, &c, GPU_VS_CPU);
+        }
+    }
+}
+
+#[test]
 fn reads_per_pixel_are_the_papers() {
     for layout in Layout::ALL {
         let p = prepared(layout, false);
@@ -115,8 +166,8 @@ fn reads_per_pixel_are_the_papers() {
 #[test]
 #[allow(clippy::needless_range_loop)] // lanes index several arrays
 fn block_lanes_equal_the_per_pixel_program() {
-    for layout in Layout::ALL {
-        let p = prepared(layout, false);
+    for (layout, hdr) in Layout::ALL.into_iter().flat_map(|l| [(l, false), (l, true)]) {
+        let p = if hdr { prepared_hdr(layout, ToneMap::None, 0.25) } else { prepared(layout, false) };
         let frame = p.frame(&camera(), LIGHT, W, H);
         let prog = BtfProgram::new(&p, &frame);
         let base = varyings(&p.vertices[0]);
@@ -149,8 +200,12 @@ fn block_lanes_equal_the_per_pixel_program() {
             for i in 0..16 {
                 let one = if live & (1 << i) != 0 { prog.shade_linear(&lane(i), &mut ()) } else { Vec3::ZERO };
                 let got = Vec3::new(block[0][i], block[1][i], block[2][i]);
-                // 16-bit texels against the scalar path's: within 2e-5
-                assert!((got - one).abs().max_element() < 2e-5, "{}: lane {i}: {got} vs {one}", layout.label());
+                // 16-bit texels against the scalar path's: within 2e-5 (half floats: the same values)
+                assert!(
+                    (got - one).abs().max_element() < 2e-5,
+                    "{} hdr {hdr}: lane {i}: {got} vs {one}",
+                    layout.label()
+                );
             }
         }
     }

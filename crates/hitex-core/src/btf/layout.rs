@@ -244,7 +244,14 @@ pub struct Codebook {
     pub lens: [u32; 6],
     /// RGBA8 texels, sRGB-encoded, layer by layer, rows top to bottom.
     pub texels: Vec<u8>,
+    /// For an HDR BTF, the same texels as linear RGBA half floats, one
+    /// 64-bit word each: R | G << 16 | B << 32 | A << 48 (A = 1.0), which
+    /// is the byte order of an `Rgba16Float` texture; empty otherwise.
+    pub half: Vec<u64>,
 }
+
+/// Half-float 1.0.
+const HALF_ONE: u64 = 0x3c00;
 
 /// Hexa-linear weights and neighbours of one pixel's four angles.
 #[derive(Debug, Clone, Copy)]
@@ -348,6 +355,26 @@ impl LinearTexel for u64 {
     }
 }
 
+/// A texel of [`Codebook::half`]: four linear half floats. A non-negative
+/// finite half's bits moved up by 13 are an f32 of its value × 2⁻¹¹²
+/// (subnormal halves included), so decoding is a shift, and the unit is
+/// 2¹¹².
+#[repr(transparent)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Half4(pub u64);
+
+/// 2¹¹², the unit of [`Half4`] values.
+pub const HALF_UNIT: f32 = f32::from_bits((127 + 112) << 23);
+
+impl LinearTexel for Half4 {
+    const UNIT: f32 = HALF_UNIT;
+    #[inline(always)]
+    fn value(self) -> Vec4 {
+        let c = |s: u32| f32::from_bits((((self.0 >> s) & 0x7fff) as u32) << 13);
+        Vec4::new(c(0), c(16), c(32), c(48))
+    }
+}
+
 /// Largest texture side used when arranging tiles (the 3-D limit of wgpu's
 /// defaults and of Mesa's GL; 2-D layouts use up to 16384).
 pub const MAX_SIDE_3D: u32 = 2048;
@@ -405,6 +432,7 @@ impl Codebook {
             strides,
             lens,
             texels: Vec::new(),
+            half: Vec::new(),
         };
         let row_bytes = width as usize * 4;
         let mut texels = vec![0u8; row_bytes * height as usize * depth as usize];
@@ -416,25 +444,58 @@ impl Codebook {
                 if k >= cb.tile_count {
                     continue;
                 }
-                let mut idx = [0u32; 6];
-                let mut rest = k;
-                for &a in spec.tiles.iter().rev() {
-                    idx[a as usize] = rest % lens[a as usize];
-                    rest /= lens[a as usize];
-                }
-                idx[spec.tile_x as usize] = cb.logical(spec.tile_x, x % tile_w);
-                idx[spec.tile_y as usize] = cb.logical(spec.tile_y, iy);
-                if let Some(a) = spec.depth {
-                    idx[a as usize] = z;
-                }
+                let idx = cb.source_of(&spec, k, x % tile_w, iy, z);
                 let view = g.direction(idx[2] as usize, idx[3] as usize);
                 let light = g.direction(idx[4] as usize, idx[5] as usize);
                 let t = btf.texel(view, light, idx[0], idx[1]);
                 row[x as usize * 4..x as usize * 4 + 4].copy_from_slice(&[t[0], t[1], t[2], 255]);
             }
         });
+        if btf.is_hdr() {
+            // the same walk over the half floats: each RGBA8 texel names its source
+            let mut half = vec![0u64; texels.len() / 4];
+            half.par_chunks_mut(width as usize).enumerate().for_each(|(r, row)| {
+                let (z, y) = (r as u32 / height, r as u32 % height);
+                let (trow, iy) = (y / tile_h, y % tile_h);
+                for x in 0..width {
+                    let k = trow * cb.tile_cols + x / tile_w;
+                    if k >= cb.tile_count {
+                        continue;
+                    }
+                    let idx = cb.source_of(&spec, k, x % tile_w, iy, z);
+                    let view = g.direction(idx[2] as usize, idx[3] as usize);
+                    let light = g.direction(idx[4] as usize, idx[5] as usize);
+                    if let Some(t) = btf.texel_half(view, light, idx[0], idx[1]) {
+                        row[x as usize] = t[0] as u64 | (t[1] as u64) << 16 | (t[2] as u64) << 32 | HALF_ONE << 48;
+                    }
+                }
+            });
+            cb.half = half;
+        }
         cb.texels = texels;
         Ok(cb)
+    }
+
+    /// The six sample indices of tile `k`'s texel (`ix`, `iy`) in layer `z`.
+    fn source_of(&self, spec: &LayoutSpec, k: u32, ix: u32, iy: u32, z: u32) -> [u32; 6] {
+        let lens = self.lens;
+        let mut idx = [0u32; 6];
+        let mut rest = k;
+        for &a in spec.tiles.iter().rev() {
+            idx[a as usize] = rest % lens[a as usize];
+            rest /= lens[a as usize];
+        }
+        idx[spec.tile_x as usize] = self.logical(spec.tile_x, ix);
+        idx[spec.tile_y as usize] = self.logical(spec.tile_y, iy);
+        if let Some(a) = spec.depth {
+            idx[a as usize] = z;
+        }
+        idx
+    }
+
+    /// Whether the codebook holds linear half floats (an HDR BTF).
+    pub fn is_hdr(&self) -> bool {
+        !self.half.is_empty()
     }
 
     /// Logical sample of a padded in-tile position: φ wraps, others clamp.
@@ -457,6 +518,12 @@ impl Codebook {
 
     #[inline]
     fn linear(&self, x: u32, y: u32, z: u32) -> Vec3 {
+        if self.is_hdr() {
+            let i = (z as usize * self.height as usize + y as usize) * self.width as usize + x as usize;
+            let h = self.half[i];
+            let f = |s: u32| super::dataset::half_value((h >> s) as u16);
+            return Vec3::new(f(0), f(16), f(32));
+        }
         let t = self.texel(x, y, z);
         srgb3([t[0], t[1], t[2]])
     }
@@ -576,6 +643,10 @@ impl Codebook {
     /// The texels decoded to linear RGB (alpha 1), one SIMD vector each:
     /// what the GPU's sRGB decoder hands its filter, cached for the CPU twin.
     pub fn linear_texels(&self) -> Vec<Vec4> {
+        if self.is_hdr() {
+            let f = |h: u64, s: u32| super::dataset::half_value((h >> s) as u16);
+            return self.half.par_iter().map(|&h| Vec4::new(f(h, 0), f(h, 16), f(h, 32), 1.0)).collect();
+        }
         let lut = decode_table(ColorSpace::Srgb);
         self.texels
             .par_chunks(4 * 4096)

@@ -9,9 +9,11 @@ pub mod procedural;
 pub mod pyramid;
 pub mod sampler;
 pub mod span;
+pub mod tone;
 
 pub use image::{
     ColorSpace, Image, SrgbEncoder, linear_to_srgb, linear_to_srgb_u8, srgb_encoder, srgb_to_linear, srgb_u8_to_linear,
 };
 pub use pyramid::MipPyramid;
 pub use sampler::{Filter, Jacobian, LevelRule, SamplerOptions, Wrap, level_of_detail, sample};
+pub use tone::ToneMap;

@@ -26,8 +26,9 @@ use super::simd::{LANES, Lanes, V3, floor, lanes};
 use crate::btf::{BtfFrame, BtfVertex, MAX_RENDER_THETA, PreparedBtf};
 use glam::Vec3;
 use hitex_core::btf::frames::acos;
-use hitex_core::btf::layout::{Axis, FetchSink, LinearTexel, ReadCounter};
+use hitex_core::btf::layout::{Axis, FetchSink, HALF_UNIT, Half4, LinearTexel, ReadCounter};
 use hitex_core::btf::{AngleLerps, AngularGrid, Codebook, angles};
+use hitex_core::texture::ToneMap;
 
 /// Varyings: world position (3), N (3), U (3), V (3), T (2).
 pub const VARYINGS: usize = 14;
@@ -52,8 +53,6 @@ struct ReadShape {
     /// The angular axes walked with two neighbours each (2..6 = θc φc θl φl).
     walk: [usize; 4],
     nwalk: usize,
-    /// Filtered angular axes: 0 (texel loads), 1 … 3.
-    filtered: u32,
     /// Per filter axis (tile x, tile y, layers): the angular axis it
     /// carries (none for u, v or an unused axis), its extent in texels, the
     /// texel offset of one step, and whether it wraps (φ layers).
@@ -71,7 +70,6 @@ impl ReadShape {
         Self {
             walk,
             nwalk,
-            filtered: cb.layout.filtered_mask().count_ones(),
             filter_axes: [
                 (angle(spec.tile_x), cb.tile_w, 1, false),
                 (angle(spec.tile_y), cb.tile_h, cb.width, false),
@@ -137,9 +135,17 @@ impl<'a> BtfProgram<'a> {
             // the same reads with the per-pixel invariants hoisted
             let plan = cb.plan(&l);
             let mut a4 = glam::Vec4::ZERO;
+            let half: &[Half4] = bytemuck::cast_slice(&self.scene.linear);
             for (x, y, wgt) in corners {
-                let e = idx.get(x, y);
-                a4 += cb.corner_planned_linear(&plan, e[0] as u32, e[1] as u32, &self.scene.linear) * wgt;
+                let (su, sv) = {
+                    let e = idx.get(x, y);
+                    (e[0] as u32, e[1] as u32)
+                };
+                a4 += if cb.is_hdr() {
+                    cb.corner_planned_linear(&plan, su, sv, half)
+                } else {
+                    cb.corner_planned_linear(&plan, su, sv, &self.scene.linear)
+                } * wgt;
             }
             acc = a4.truncate();
         }
@@ -180,11 +186,15 @@ impl<'a> BtfProgram<'a> {
         let (tl, pl) = angles_lanes(&p, &n, &u, &w, self.light);
         let g = &self.scene.grid;
         let l = [lerp_theta(g, &tc), lerp_phi(g, &pc), lerp_theta(g, &tl), lerp_phi(g, &pl)];
-        match (self.reads.nwalk, self.reads.filtered) {
-            (4, _) => self.read_lanes::<16, 1>(v, lit, &l, &mut out),
-            (3, _) => self.read_lanes::<8, 2>(v, lit, &l, &mut out),
-            (2, _) => self.read_lanes::<4, 4>(v, lit, &l, &mut out),
-            _ => self.read_lanes::<2, 8>(v, lit, &l, &mut out),
+        match (self.reads.nwalk, self.scene.is_hdr()) {
+            (4, false) => self.read_lanes::<16, 1, false>(v, lit, &l, &mut out),
+            (3, false) => self.read_lanes::<8, 2, false>(v, lit, &l, &mut out),
+            (2, false) => self.read_lanes::<4, 4, false>(v, lit, &l, &mut out),
+            (_, false) => self.read_lanes::<2, 8, false>(v, lit, &l, &mut out),
+            (4, true) => self.read_lanes::<16, 1, true>(v, lit, &l, &mut out),
+            (3, true) => self.read_lanes::<8, 2, true>(v, lit, &l, &mut out),
+            (2, true) => self.read_lanes::<4, 4, true>(v, lit, &l, &mut out),
+            (_, true) => self.read_lanes::<2, 8, true>(v, lit, &l, &mut out),
         }
         out
     }
@@ -192,8 +202,10 @@ impl<'a> BtfProgram<'a> {
     /// The reads of the lit lanes: per lane, four index texels, each the
     /// `NC` walked combinations × the filter's `NT` taps of one sample
     /// texel (taps of weight zero read too, as the hardware filter does).
+    /// `HDR`: the texels are [`Half4`] words (their weights carry the unit
+    /// 2¹¹², so that no product is subnormal), else 16-bit fixed point.
     #[inline(always)]
-    fn read_lanes<const NC: usize, const NT: usize>(
+    fn read_lanes<const NC: usize, const NT: usize, const HDR: bool>(
         &self,
         v: &[Lanes; VARYINGS],
         lit: u16,
@@ -311,11 +323,21 @@ impl<'a> BtfProgram<'a> {
                     for i in 0..LANES {
                         px[i] = texels[((base[i] + to[t][i]) as usize).min(last_texel)];
                     }
-                    for i in 0..LANES {
-                        let w = cw[c][i] * tw[t][i];
-                        corner[0][i] += (px[i] & 0xffff) as i32 as f32 * w;
-                        corner[1][i] += ((px[i] >> 16) & 0xffff) as i32 as f32 * w;
-                        corner[2][i] += ((px[i] >> 32) & 0xffff) as i32 as f32 * w;
+                    if HDR {
+                        let h = |p: u64, s: u32| f32::from_bits((((p >> s) & 0x7fff) as u32) << 13);
+                        for i in 0..LANES {
+                            let w = cw[c][i] * tw[t][i] * HALF_UNIT;
+                            corner[0][i] += h(px[i], 0) * w;
+                            corner[1][i] += h(px[i], 16) * w;
+                            corner[2][i] += h(px[i], 32) * w;
+                        }
+                    } else {
+                        for i in 0..LANES {
+                            let w = cw[c][i] * tw[t][i];
+                            corner[0][i] += (px[i] & 0xffff) as i32 as f32 * w;
+                            corner[1][i] += ((px[i] >> 16) & 0xffff) as i32 as f32 * w;
+                            corner[2][i] += ((px[i] >> 32) & 0xffff) as i32 as f32 * w;
+                        }
                     }
                 }
             }
@@ -325,7 +347,7 @@ impl<'a> BtfProgram<'a> {
                 }
             }
         }
-        let scale = self.exposure * <u64 as LinearTexel>::UNIT;
+        let scale = if HDR { self.exposure } else { self.exposure * <u64 as LinearTexel>::UNIT };
         for ch in 0..3 {
             for i in 0..LANES {
                 out[ch][i] = if lit & (1 << i) != 0 { acc[ch][i] * scale } else { 0.0 };
@@ -390,12 +412,23 @@ impl BlockShader<VARYINGS> for BtfProgram<'_> {
     #[inline(always)]
     fn shade_block(&self, b: &Block<VARYINGS>, rgba: &mut [[u8; 4]; LANES], _depth: &mut Lanes) {
         let c = self.shade_lanes(&b.v, b.live);
-        let enc = hitex_core::texture::srgb_encoder();
-        let e = |x: f32| enc.encode(x);
-        for i in 0..LANES {
-            if b.live & (1 << i) != 0 {
-                rgba[i] = [e(c[0][i]), e(c[1][i]), e(c[2][i]), 255];
-            }
+        // one loop per tone map, the map inlined into it
+        match self.scene.tone_map {
+            ToneMap::None => encode_lanes(&c, b.live, rgba, |x| x),
+            ToneMap::Reinhard => encode_lanes(&c, b.live, rgba, |x| ToneMap::Reinhard.apply(x)),
+            ToneMap::Aces => encode_lanes(&c, b.live, rgba, |x| ToneMap::Aces.apply(x)),
+        }
+    }
+}
+
+/// The live lanes of linear RGB `c`, tone-mapped by `tone` and sRGB-encoded.
+#[inline(always)]
+fn encode_lanes(c: &[Lanes; 3], live: u16, rgba: &mut [[u8; 4]; LANES], tone: impl Fn(f32) -> f32) {
+    let enc = hitex_core::texture::srgb_encoder();
+    let e = |x: f32| enc.encode(tone(x));
+    for i in 0..LANES {
+        if live & (1 << i) != 0 {
+            rgba[i] = [e(c[0][i]), e(c[1][i]), e(c[2][i]), 255];
         }
     }
 }

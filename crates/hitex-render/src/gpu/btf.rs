@@ -1,5 +1,6 @@
 //! The BTF pipeline: the index map and one codebook layout as real GPU
-//! textures (2-D tiles or 3-D layers, RGBA8 sRGB or BC1 sRGB), sampled with
+//! textures (2-D tiles or 3-D layers, RGBA8 sRGB, BC1 sRGB or, for an HDR
+//! BTF, RGBA16F), sampled with
 //! the hardware filter by `shaders/btf.wgsl`.
 
 use super::{GpuError, GpuRenderer, trusted_module};
@@ -159,6 +160,10 @@ fn codebook_texture(
                 )));
             }
             (wgpu::TextureFormat::Bc1RgbaUnormSrgb, blocks, cb.width / 4 * 8, cb.height / 4)
+        }
+        // an HDR codebook: its linear half floats, RGBA16F
+        None if cb.is_hdr() => {
+            (wgpu::TextureFormat::Rgba16Float, bytemuck::cast_slice(&cb.half), cb.width * 8, cb.height)
         }
         None => (wgpu::TextureFormat::Rgba8UnormSrgb, &cb.texels, cb.width * 4, cb.height),
     };
