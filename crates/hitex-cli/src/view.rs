@@ -15,6 +15,7 @@ use hitex_core::btf::{Btf, Layout};
 use hitex_core::residency::ResidentMaps;
 use hitex_core::scene::{Camera, RenderMode, Scene};
 use hitex_core::texture::MipPyramid;
+use hitex_core::texture::ToneMap;
 use hitex_core::texture::bc1::Bc1Encoder;
 use hitex_core::texture::sampler::Wrap;
 use hitex_core::texture::span::{
@@ -292,7 +293,9 @@ fn open_btf(input: &str, mode: Option<&str>, aspect: f32) -> Result<Content, Cli
     let map = crate::btf_cmd::index_with_progress(&btf, 128, 1, 3, true)?;
     let surface = crate::btf_cmd::surface_for("sphere", 4.0)?;
     let camera = crate::btf_cmd::camera_for(&surface, false, aspect)?;
-    let prepared = PreparedBtf::new(&btf, layout, None, map.clone(), surface.clone())?;
+    let mut prepared = PreparedBtf::new(&btf, layout, None, map.clone(), surface.clone())?;
+    // an HDR BTF is shown through the tone map `btf render` uses by default
+    prepared.tone_map = if btf.is_hdr() { ToneMap::Aces } else { ToneMap::None };
     Ok(Content::Btf(Box::new(BtfView {
         btf,
         map,
@@ -501,10 +504,18 @@ impl Content {
                         ui.selectable_value(&mut b.layout, l, l.label());
                     }
                 });
-                ui.checkbox(&mut b.bc1, "BC1 (DXT1)");
+                if b.btf.is_hdr() {
+                    // BC1 holds 8-bit colours only
+                    b.bc1 = false;
+                    ui.label("HDR texels (half floats), ACES tone map");
+                } else {
+                    ui.checkbox(&mut b.bc1, "BC1 (DXT1)");
+                }
                 if (layout, bc1) != (b.layout, b.bc1) {
                     let enc = b.bc1.then_some(Bc1Encoder::Ispc);
+                    let tone = b.prepared.tone_map;
                     b.prepared = PreparedBtf::new(&b.btf, b.layout, enc, b.map.clone(), b.surface.clone())?;
+                    b.prepared.tone_map = tone;
                     changed = true;
                 }
                 changed |= light_sliders(ui, &mut b.light);

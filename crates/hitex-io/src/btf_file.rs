@@ -428,7 +428,9 @@ fn read_header(r: &mut impl Read, file_len: u64, path: &Path) -> Result<HbtfHead
             "header declares payloads of {total} bytes but only {remaining} follow the header (truncated file)"
         )));
     }
-    crate::limits::check_cap("the payload", Some(total)).map_err(fmt)?;
+    // an HDR payload is held twice while it is decoded into half floats
+    let held = payload_bytes + 2 * hdr.map_or(0, |f| f.bytes);
+    crate::limits::check_cap("the payload", Some(held)).map_err(fmt)?;
     Ok(HbtfHeader { version, header_bytes, width, height, grid, flags, payload_bytes, crc32: crc, hdr })
 }
 

@@ -419,20 +419,38 @@ fn inverse3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
     Some(inv)
 }
 
-/// The RGB → XYZ matrix of primaries and a white point (xy chromaticities):
-/// the columns are the primaries' XYZ scaled so that RGB (1, 1, 1) is the
-/// white of luminance 1.
+/// The RGB → XYZ matrix of primaries and a white point (xy chromaticities),
+/// adapted to D65: the columns are the primaries' (x, y, 1 − x − y) scaled
+/// so that RGB (1, 1, 1) is the white of luminance 1 (a primary may have
+/// y = 0, as the XYZ-as-RGB convention's blue (0, 0) has), then a Bradford
+/// adaptation from that white to D65, the white of linear sRGB.
 fn rgb_to_xyz(c: &[[f64; 2]; 4]) -> Option<[[f64; 3]; 3]> {
-    let xyz = |p: [f64; 2]| [p[0] / p[1], 1.0, (1.0 - p[0] - p[1]) / p[1]];
-    let (r, g, b, w) = (xyz(c[0]), xyz(c[1]), xyz(c[2]), xyz(c[3]));
+    let col = |p: [f64; 2]| [p[0], p[1], 1.0 - p[0] - p[1]];
+    let (r, g, b) = (col(c[0]), col(c[1]), col(c[2]));
+    if c[3][1] <= 0.0 {
+        return None;
+    }
+    let xyz_of = |p: [f64; 2]| [p[0] / p[1], 1.0, (1.0 - p[0] - p[1]) / p[1]];
+    let w = xyz_of(c[3]);
     let p = [[r[0], g[0], b[0]], [r[1], g[1], b[1]], [r[2], g[2], b[2]]];
     let inv = inverse3(&p)?;
     let s: Vec<f64> = (0..3).map(|i| (0..3).map(|k| inv[i][k] * w[k]).sum()).collect();
-    Some([
+    let m = [
         [p[0][0] * s[0], p[0][1] * s[1], p[0][2] * s[2]],
         [p[1][0] * s[0], p[1][1] * s[1], p[1][2] * s[2]],
         [p[2][0] * s[0], p[2][1] * s[1], p[2][2] * s[2]],
-    ])
+    ];
+    // Bradford cone response; scale from the file's white to D65
+    const BRADFORD: [[f64; 3]; 3] = [[0.8951, 0.2664, -0.1614], [-0.7502, 1.7135, 0.0367], [0.0389, -0.0685, 1.0296]];
+    let d65 = xyz_of(REC709[3]);
+    let cone = |v: [f64; 3]| -> [f64; 3] { [0, 1, 2].map(|i| (0..3).map(|k| BRADFORD[i][k] * v[k]).sum()) };
+    let (src, dst) = (cone(w), cone(d65));
+    if src.iter().any(|&v| v.abs() < 1e-12) {
+        return None;
+    }
+    let diag = [[dst[0] / src[0], 0.0, 0.0], [0.0, dst[1] / src[1], 0.0], [0.0, 0.0, dst[2] / src[2]]];
+    let adapt = mul3(&inverse3(&BRADFORD)?, &mul3(&diag, &BRADFORD));
+    Some(mul3(&adapt, &m))
 }
 
 /// A decoded EXR image: linear RGB (sRGB primaries) and the values clamped.
@@ -491,7 +509,19 @@ fn decode_exr(bytes: &[u8], path: &Path) -> Result<ExrImage, IoError> {
             )));
         }
     }
-    crate::limits::check_cap(&format!("an EXR image of {w}x{h} texels"), Some(w as u64 * h as u64 * 24))
+    // every channel of the layer is decoded (2 or 4 bytes a sample), then
+    // three f32 planes and the RGB result: 24 bytes a texel
+    let stored: u64 = header
+        .channels
+        .list
+        .iter()
+        .map(|c| match c.sample_type {
+            exr::meta::attribute::SampleType::F16 => 2u64,
+            _ => 4,
+        })
+        .sum();
+    let claim = crate::limits::product(&[w as u64, h as u64, stored + 24]);
+    crate::limits::check_cap(&format!("an EXR image of {w}x{h} texels in {} channels", names.len()), claim)
         .map_err(fmt)?;
     let image = exr::prelude::read()
         .no_deep_data()
@@ -752,7 +782,9 @@ fn lookup(grid: &AngularGrid, dir: usize, theta_max: f32) -> [f64; 3] {
 ///
 /// Duplicates (the same four angles twice) keep the first file in name
 /// order. Errors name the file: unreadable, corrupt or differently sized
-/// images, EXR images, or a set with no image named in either convention.
+/// images, a set mixing EXR and 8-bit images, or a set with no image named in
+/// either convention. EXR sets are blended in their linear values (no
+/// encoding), and make an HDR BTF.
 pub fn import_image_set(
     path: &Path,
     grid: Option<AngularGrid>,
@@ -925,10 +957,14 @@ pub fn import_image_set(
             None => {
                 (sw, sh) = size.map_or((w, h), |s| (s, s));
                 check_shape(sw, sh)?;
-                // 8-bit: 3 bytes a texel; HDR: 12 read, and 12 a texel of the linear BTF
-                let per = if hdr { 12 } else { 3 };
-                let n = unique.len() as u64 + if hdr { (d * d) as u64 } else { 0 };
-                let claim = crate::limits::product(&[n, sw as u64, sh as u64, per]);
+                // 8-bit: 3 bytes a texel read and 3 of the BTF; HDR: 12 read, and
+                // 12 + 6 + 3 a texel of the linear BTF, its halves and display copy
+                let (per_read, per_out) = if hdr { (12, 21) } else { (3, 3) };
+                let texels = crate::limits::product(&[sw as u64, sh as u64]).unwrap_or(u64::MAX);
+                let claim = (unique.len() as u64)
+                    .checked_mul(per_read)
+                    .and_then(|a| Some(a + ((d * d) as u64).checked_mul(per_out)?))
+                    .and_then(|a| a.checked_mul(texels));
                 crate::limits::check_cap(&format!("{} images of {sw}x{sh} texels", unique.len()), claim)
                     .map_err(fmt)?;
                 if hdr {
@@ -961,23 +997,25 @@ pub fn import_image_set(
     let n = sw as usize * sh as usize * 3;
     let image = |e: usize| &store[slot_of[e] * n..(slot_of[e] + 1) * n];
     let image_hdr = |e: usize| &store_hdr[slot_of[e] * n..(slot_of[e] + 1) * n];
-    let mut btf = Btf::zeroed(target.clone(), sw, sh).map_err(|e| IoError::from(e).in_file(path))?;
+    // the 8-bit BTF (an HDR one is made from the linear values at the end)
+    let mut btf = match hdr {
+        true => None,
+        false => Some(Btf::zeroed(target.clone(), sw, sh).map_err(|e| IoError::from(e).in_file(path))?),
+    };
     // the HDR BTF's linear values, image by image
     let mut linear_out: Vec<f32> = if hdr { vec![0.0; d * d * n] } else { Vec::new() };
-    let to_btf = |btf: Btf, linear_out: Vec<f32>| -> Result<Btf, IoError> {
-        if hdr {
-            Btf::from_linear(target.clone(), sw, sh, &linear_out).map_err(|e| IoError::from(e).in_file(path))
-        } else {
-            Ok(btf)
+    let to_btf = |btf: Option<Btf>, linear_out: Vec<f32>| -> Result<Btf, IoError> {
+        match btf {
+            Some(b) => Ok(b),
+            None => Btf::from_linear(target.clone(), sw, sh, &linear_out).map_err(|e| IoError::from(e).in_file(path)),
         }
     };
 
     if direct.is_some() {
         for (idx, &e) in needed.iter().enumerate() {
-            if hdr {
-                linear_out[idx * n..(idx + 1) * n].copy_from_slice(image_hdr(e));
-            } else {
-                btf.image_mut(idx / d, idx % d).copy_from_slice(image(e));
+            match btf.as_mut() {
+                Some(b) => b.image_mut(idx / d, idx % d).copy_from_slice(image(e)),
+                None => linear_out[idx * n..(idx + 1) * n].copy_from_slice(image_hdr(e)),
             }
             progress(done + idx + 1, total);
         }
@@ -1049,14 +1087,17 @@ pub fn import_image_set(
                 }
             }
             let inv = if wsum > 0.0 { 1.0 / wsum } else { 0.0 };
-            if hdr {
-                let i = v * d + l;
-                for (o, &a) in linear_out[i * n..(i + 1) * n].iter_mut().zip(&acc) {
-                    *o = a * inv;
+            match btf.as_mut() {
+                Some(b) => {
+                    for (o, &a) in b.image_mut(v, l).iter_mut().zip(&acc) {
+                        *o = linear_to_srgb_u8(a * inv);
+                    }
                 }
-            } else {
-                for (o, &a) in btf.image_mut(v, l).iter_mut().zip(&acc) {
-                    *o = linear_to_srgb_u8(a * inv);
+                None => {
+                    let i = v * d + l;
+                    for (o, &a) in linear_out[i * n..(i + 1) * n].iter_mut().zip(&acc) {
+                        *o = a * inv;
+                    }
                 }
             }
             progress(done + v * d + l + 1, total);
@@ -1535,6 +1576,29 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn exr_chromaticities_map_the_files_white_to_srgb_white() {
+        // Rec. 709 itself; CIE XYZ stored as RGB (white E, a blue of y = 0); ACES AP0 (white ≈ D60)
+        let xyz_e = [[1.0, 0.0], [0.0, 1.0], [0.0, 0.0], [1.0 / 3.0, 1.0 / 3.0]];
+        let ap0 = [[0.7347, 0.2653], [0.0, 1.0], [0.0001, -0.077], [0.32168, 0.33767]];
+        for c in [REC709, xyz_e, ap0] {
+            let m = mul3(&XYZ_TO_SRGB, &rgb_to_xyz(&c).unwrap());
+            for (r, row) in m.iter().enumerate() {
+                let white: f64 = row.iter().sum();
+                assert!((white - 1.0).abs() < 2e-3, "{c:?}: row {r} maps white to {white}");
+            }
+        }
+        // Rec. 709 primaries give the identity
+        let m = mul3(&XYZ_TO_SRGB, &rgb_to_xyz(&REC709).unwrap());
+        for (r, row) in m.iter().enumerate() {
+            for (k, &v) in row.iter().enumerate() {
+                assert!((v - if r == k { 1.0 } else { 0.0 }).abs() < 2e-3, "{m:?}");
+            }
+        }
+        // a degenerate white is refused
+        assert!(rgb_to_xyz(&[[0.64, 0.33], [0.3, 0.6], [0.15, 0.06], [0.3, 0.0]]).is_none());
     }
 
     #[test]

@@ -5,10 +5,13 @@
 //! * [`ToneMap::None`]: the value itself; the encoder clamps at 1 (what an
 //!   8-bit BTF has always been rendered with);
 //! * [`ToneMap::Reinhard`]: `x / (1 + x)` (Reinhard et al. 2002, eq. 3),
-//!   which never clips and halves mid-grey;
+//!   which never clips and maps 1 to ½;
 //! * [`ToneMap::Aces`]: Narkowicz's 2015 fit of the ACES reference rendering
 //!   transform, `x (2.51 x + 0.03) / (x (2.43 x + 0.59) + 0.14)` clamped to
-//!   [0, 1]: a film-like shoulder that clips at about x = 11.
+//!   [0, 1]: a film-like shoulder that reaches 1 at x ≈ 7.24.
+//!
+//! Inputs are clamped to [0, 10⁴] first (the maps are flat there), so that
+//! no product overflows at extreme exposures.
 
 /// A tone map, per channel.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -47,7 +50,7 @@ impl ToneMap {
     /// The map of one channel value (NaN and negative values give 0).
     #[inline(always)]
     pub fn apply(self, x: f32) -> f32 {
-        let x = if x > 0.0 { x } else { 0.0 };
+        let x = if x > 0.0 { x.min(1.0e4) } else { 0.0 };
         match self {
             ToneMap::None => x,
             ToneMap::Reinhard => x / (1.0 + x),
@@ -68,6 +71,10 @@ mod tests {
         // ACES fit at 1: 2.54 / 3.16
         assert!((ToneMap::Aces.apply(1.0) - 2.54 / 3.16).abs() < 1e-6);
         assert_eq!(ToneMap::Aces.apply(100.0), 1.0);
+        // no overflow to NaN at extreme exposures
+        for t in ToneMap::ALL {
+            assert!(t.apply(1.0e30).is_finite() && t.apply(f32::INFINITY).is_finite());
+        }
         for t in ToneMap::ALL {
             assert_eq!(t.apply(0.0), 0.0);
             assert_eq!(t.apply(-1.0), 0.0);
