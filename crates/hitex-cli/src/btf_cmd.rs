@@ -4,6 +4,7 @@ use crate::{Backend, CliError, open_renderer, parse_size, render_frame, save};
 use clap::{Subcommand, ValueEnum};
 use glam::Vec3;
 use hitex_core::btf::index::{IndexMap, SynthesisOptions, features, seam_quality, synthesize_index};
+use hitex_core::btf::mip::BtfMip;
 use hitex_core::btf::synth::{Material, SynthOptions, synthesize};
 use hitex_core::btf::{AngularGrid, Btf, Layout};
 use hitex_core::scene::Camera;
@@ -136,7 +137,33 @@ pub enum BtfCommand {
         /// 8-bit one.
         #[arg(long, value_enum, default_value_t = ToneMapArg::Auto)]
         tone_map: ToneMapArg,
+        /// MIP mapping: on (a pyramid of index maps with per-level
+        /// codebooks, the level chosen per pixel, blended trilinearly) or off
+        /// (the index map and codebook alone, as the paper renders).
+        #[arg(long, value_enum, default_value_t = OnOff::On)]
+        mip: OnOff,
     },
+}
+
+/// A switch.
+#[derive(Clone, Copy, ValueEnum, Debug, PartialEq)]
+pub enum OnOff {
+    /// Enabled.
+    On,
+    /// Disabled.
+    Off,
+}
+
+/// The MIP pyramid of `btf` through `map`, with a progress bar.
+pub fn mip_with_progress(btf: &Btf, map: &IndexMap, quiet: bool) -> Result<BtfMip, CliError> {
+    let pb = if quiet { ProgressBar::hidden() } else { bar(0, "MIP levels") };
+    let mip = hitex_core::btf::mip::build_mip(btf, map, &|done, total| {
+        pb.set_length(total as u64);
+        pb.set_position(done as u64);
+    })
+    .map_err(|e| CliError::Input(e.to_string()))?;
+    pb.finish_and_clear();
+    Ok(mip)
 }
 
 /// Tone maps.
@@ -417,11 +444,18 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 g.directions(),
                 btf.images()
             );
-            println!(
-                "  codebook: {:.1} MiB as RGBA8, {:.1} MiB as BC1",
-                btf.gpu_bytes() as f64 / 1048576.0,
-                btf.gpu_bytes() as f64 / 8.0 / 1048576.0
-            );
+            if btf.is_hdr() {
+                println!(
+                    "  codebook: {:.1} MiB as RGBA16F (BC1 holds 8-bit colours only)",
+                    2.0 * btf.gpu_bytes() as f64 / 1048576.0
+                );
+            } else {
+                println!(
+                    "  codebook: {:.1} MiB as RGBA8, {:.1} MiB as BC1",
+                    btf.gpu_bytes() as f64 / 1048576.0,
+                    btf.gpu_bytes() as f64 / 8.0 / 1048576.0
+                );
+            }
             println!("  layouts:");
             for l in Layout::ALL {
                 match hitex_core::btf::Codebook::build(&btf, l) {
@@ -435,7 +469,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                         cb.tile_w,
                         cb.tile_h,
                         l.codebook_reads(),
-                        cb.bytes() as f64 / 1048576.0
+                        (if cb.is_hdr() { 8 * cb.half.len() as u64 } else { cb.bytes() }) as f64 / 1048576.0
                     ),
                     Err(e) => println!("    {:<5} (--layout {:<2}) not possible: {e}", l.label(), l.name()),
                 }
@@ -575,6 +609,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             backend,
             exposure,
             tone_map,
+            mip,
         } => {
             crate::image_out(&output)?;
             if !(exposure.is_finite() && exposure.abs() <= 64.0) {
@@ -602,7 +637,20 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             let camera = camera_for(&surface, quad, size.0 as f32 / size.1 as f32)?;
             let light = light_for(&surface, quad, light_azimuth, light_elevation);
             let t = Instant::now();
-            let mut prepared = PreparedBtf::new(&btf, layout, bc1.then_some(Bc1Encoder::Ispc), map, surface)?;
+            let enc = bc1.then_some(Bc1Encoder::Ispc);
+            let (mut prepared, mip_note) = match mip {
+                OnOff::On => {
+                    let m = mip_with_progress(&btf, &map, false)?;
+                    let note = format!(
+                        ", MIP {} levels ({} entries over levels 1–{}; twice the reads where two levels blend)",
+                        m.level_count(),
+                        m.entries[1..].iter().sum::<usize>(),
+                        m.level_count() - 1
+                    );
+                    (PreparedBtf::with_mip(&m, layout, enc, surface)?, note)
+                }
+                OnOff::Off => (PreparedBtf::new(&btf, layout, enc, map, surface)?, String::new()),
+            };
             let prep_ms = t.elapsed().as_secs_f64() * 1e3;
             prepared.exposure = exposure.exp2();
             prepared.tone_map = match tone_map {
@@ -626,7 +674,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 String::new()
             };
             println!(
-                "wrote {} ({}x{}, layout {}{}{tone}, {} codebook reads per pixel, {}) in {ms:.1} ms (+{prep_ms:.0} ms layout{})",
+                "wrote {} ({}x{}, layout {}{}{tone}{mip_note}, {} codebook reads per pixel, {}) in {ms:.1} ms (+{prep_ms:.0} ms layout{})",
                 output.display(),
                 size.0,
                 size.1,

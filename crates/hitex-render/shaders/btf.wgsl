@@ -15,6 +15,7 @@ struct Frame {
     tile: vec4<u32>,        // tile width, height, tiles per row; tone map
     strides: array<vec4<u32>, 2>,
     theta: array<vec4<f32>, 16>, // polar angles in degrees
+    mip: vec4<u32>,         // index-map MIP levels (1: none)
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -237,7 +238,7 @@ fn index_taps(t_in: f32, size: u32) -> Taps {
 
 // Twin of hitex_core::texture::ToneMap::apply: 0 none, 1 Reinhard, 2 ACES fit.
 fn tone_map(c: vec3<f32>, mode: u32) -> vec3<f32> {
-    let x = max(c, vec3<f32>(0.0));
+    let x = clamp(c, vec3<f32>(0.0), vec3<f32>(1.0e4));
     if mode == 1u {
         return x / (vec3<f32>(1.0) + x);
     }
@@ -247,8 +248,32 @@ fn tone_map(c: vec3<f32>, mode: u32) -> vec3<f32> {
     return x;
 }
 
+// The four index texels of one MIP level around T, through the layout's
+// reads, bilinearly weighted (4 index reads). The level goes in as i32: naga's
+// GLSL writer passes a u32 level to textureSize, which GLSL has no overload for.
+fn index_level(uv: vec2<f32>, level: u32, l: array<Lerp, 4>) -> vec3<f32> {
+    let size = textureDimensions(index_map, i32(level));
+    let tx = index_taps(uv.x, size.x);
+    let ty = index_taps(uv.y, size.y);
+    let e00 = textureLoad(index_map, vec2<u32>(tx.i0, ty.i0), i32(level)).xy;
+    let e10 = textureLoad(index_map, vec2<u32>(tx.i1, ty.i0), i32(level)).xy;
+    let e01 = textureLoad(index_map, vec2<u32>(tx.i0, ty.i1), i32(level)).xy;
+    let e11 = textureLoad(index_map, vec2<u32>(tx.i1, ty.i1), i32(level)).xy;
+    // hexa-linear over the angles through the layout's reads
+    var acc = fetch_corner(e00.x, e00.y, l) * ((1.0 - tx.f) * (1.0 - ty.f));
+    acc = acc + fetch_corner(e10.x, e10.y, l) * (tx.f * (1.0 - ty.f));
+    acc = acc + fetch_corner(e01.x, e01.y, l) * ((1.0 - tx.f) * ty.f);
+    acc = acc + fetch_corner(e11.x, e11.y, l) * (tx.f * ty.f);
+    return acc;
+}
+
 @fragment
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
+    // the level of detail (seed 001, eq. 2, the Vulkan rho) in uniform control flow
+    let texels = vec2<f32>(f32(frame.sizes.x), f32(frame.sizes.y));
+    let dx = dpdxFine(in.uv) * texels;
+    let dy = dpdyFine(in.uv) * texels;
+    let rho = sqrt(max(dot(dx, dx), dot(dy, dy)));
     let p = in.world;
     let cam = frame.camera.xyz;
     let light = frame.light.xyz;
@@ -267,18 +292,23 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     let ac = angles(p, n, u, v, cam);
     let al = angles(p, n, u, v, light);
     let l = array<Lerp, 4>(lerp_theta(ac.x), lerp_phi(ac.y), lerp_theta(al.x), lerp_phi(al.y));
-    // index map: four texels around T, bilinear weights (4 index reads)
-    let tx = index_taps(in.uv.x, frame.sizes.x);
-    let ty = index_taps(in.uv.y, frame.sizes.y);
-    let e00 = textureLoad(index_map, vec2<u32>(tx.i0, ty.i0), 0).xy;
-    let e10 = textureLoad(index_map, vec2<u32>(tx.i1, ty.i0), 0).xy;
-    let e01 = textureLoad(index_map, vec2<u32>(tx.i0, ty.i1), 0).xy;
-    let e11 = textureLoad(index_map, vec2<u32>(tx.i1, ty.i1), 0).xy;
-    // hexa-linear over the angles through the layout's reads
-    var acc = fetch_corner(e00.x, e00.y, l) * ((1.0 - tx.f) * (1.0 - ty.f));
-    acc = acc + fetch_corner(e10.x, e10.y, l) * (tx.f * (1.0 - ty.f));
-    acc = acc + fetch_corner(e01.x, e01.y, l) * ((1.0 - tx.f) * ty.f);
-    acc = acc + fetch_corner(e11.x, e11.y, l) * (tx.f * ty.f);
+    // index map at the level pair of the footprint, blended trilinearly
+    var acc: vec3<f32>;
+    if (frame.mip.x > 1u) {
+        var lod = 0.0;
+        if (rho > 0.0 && rho <= 3.0e38) {
+            lod = clamp(log2(rho), 0.0, f32(frame.mip.x - 1u));
+        }
+        let l0 = floor(lod);
+        let t = lod - l0;
+        let k = u32(l0);
+        acc = index_level(in.uv, k, l);
+        if (t > 0.0) {
+            acc = acc * (1.0 - t) + index_level(in.uv, min(k + 1u, frame.mip.x - 1u), l) * t;
+        }
+    } else {
+        acc = index_level(in.uv, 0u, l);
+    }
     let c = tone_map(acc * frame.light.w, frame.tile.w);
     return vec4<f32>(linear_to_srgb(c.x), linear_to_srgb(c.y), linear_to_srgb(c.z), 1.0);
 }

@@ -5,6 +5,7 @@
 use crate::RenderError;
 use glam::{Mat4, Vec2, Vec3};
 use hitex_core::btf::index::IndexMap;
+use hitex_core::btf::mip::BtfMip;
 use hitex_core::btf::{AngularGrid, Btf, Codebook, Layout};
 use hitex_core::nurbs::NurbsSurface;
 use hitex_core::scene::{Camera, Mesh};
@@ -206,6 +207,8 @@ pub struct BtfFrame {
     pub strides: [[u32; 4]; 2],
     /// Polar angles of the grid in degrees, 4 per vector.
     pub theta: [[f32; 4]; MAX_RENDER_THETA / 4],
+    /// Index-map MIP levels (1 without MIP mapping); unused ×3.
+    pub mip: [u32; 4],
 }
 
 static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
@@ -225,9 +228,9 @@ pub struct PreparedBtf {
     pub bc1: Option<Vec<u8>>,
     /// The codebook's texels decoded to linear RGB in 16-bit fixed point
     /// ([`Codebook::linear_texels16`]): the CPU twin's copy of what the
-    /// GPU's sRGB (and BC1) decoder feeds its filter. For an HDR BTF, the
-    /// linear half floats themselves ([`Codebook::half`]), as the GPU's
-    /// `Rgba16Float` texture holds them.
+    /// GPU's sRGB (and BC1) decoder feeds its filter. Empty for an HDR
+    /// BTF: both backends read its linear half floats ([`Codebook::half`]),
+    /// as the GPU's `Rgba16Float` texture holds them.
     pub linear: Vec<u64>,
     /// The index map.
     pub index: IndexMap,
@@ -239,6 +242,13 @@ pub struct PreparedBtf {
     pub exposure: f32,
     /// The tone map applied after the exposure, before the sRGB encoding.
     pub tone_map: ToneMap,
+    /// The index map's MIP levels (level 0 first) when the BTF is MIP
+    /// mapped ([`PreparedBtf::with_mip`]), else empty.
+    pub mip: Vec<IndexMap>,
+    /// Every MIP level's entries as `su | sv << 16`, level after level.
+    pub(crate) mip_entries: Vec<u32>,
+    /// Where each level starts in `mip_entries`.
+    pub(crate) mip_offsets: Vec<u32>,
 }
 
 impl PreparedBtf {
@@ -280,7 +290,8 @@ impl PreparedBtf {
             }
             None => None,
         };
-        let linear = if codebook.is_hdr() { codebook.half.clone() } else { codebook.linear_texels16() };
+        // an HDR codebook is read from its half floats (`codebook.half`) by both backends
+        let linear = if codebook.is_hdr() { Vec::new() } else { codebook.linear_texels16() };
         Ok(Self {
             linear,
             id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
@@ -293,7 +304,54 @@ impl PreparedBtf {
             background: Vec3::new(0.02, 0.02, 0.025),
             exposure: 1.0,
             tone_map: ToneMap::None,
+            mip: Vec::new(),
+            mip_entries: Vec::new(),
+            mip_offsets: Vec::new(),
         })
+    }
+
+    /// A MIP-mapped BTF ([`hitex_core::btf::mip::build_mip`]): the stacked
+    /// codebook laid out as `layout`, the level-0 map as the index, and
+    /// every level chosen per pixel from the screen-to-index-map Jacobian
+    /// (seed 001, eq. 2) and blended trilinearly. Where a pixel is at level
+    /// 0, it renders the bits the BTF without MIP mapping renders (without
+    /// BC1, whose blocks see the stacked arrangement).
+    pub fn with_mip(
+        mip: &BtfMip,
+        layout: Layout,
+        bc1: Option<Bc1Encoder>,
+        surface: BtfSurface,
+    ) -> Result<Self, RenderError> {
+        let Some(first) = mip.levels.first() else {
+            return Err(RenderError::Invalid("a MIP pyramid without levels".into()));
+        };
+        let mut p = Self::new(&mip.btf, layout, bc1, first.clone(), surface)?;
+        let (w, h) = (mip.btf.width(), mip.btf.height());
+        let mut offsets = Vec::with_capacity(mip.levels.len());
+        let mut entries = Vec::new();
+        for (k, l) in mip.levels.iter().enumerate() {
+            let (lw, lh) = ((first.width >> k).max(1), (first.height >> k).max(1));
+            if (l.width, l.height) != (lw, lh) || l.entries.len() != (lw * lh) as usize {
+                return Err(RenderError::Invalid(format!(
+                    "MIP level {k} is {}x{}; a MIP chain of a {}x{} map needs {lw}x{lh}",
+                    l.width, l.height, first.width, first.height
+                )));
+            }
+            if l.entries.iter().any(|e| e[0] as u32 >= w || e[1] as u32 >= h) {
+                return Err(RenderError::Invalid(format!("MIP level {k} names texels outside the codebook")));
+            }
+            offsets.push(entries.len() as u32);
+            entries.extend(l.entries.iter().map(|e| e[0] as u32 | (e[1] as u32) << 16));
+        }
+        p.mip = mip.levels.clone();
+        p.mip_entries = entries;
+        p.mip_offsets = offsets;
+        Ok(p)
+    }
+
+    /// Index-map MIP levels: 1 without MIP mapping.
+    pub fn mip_levels(&self) -> usize {
+        self.mip.len().max(1)
     }
 
     /// Identity of this content (GPU uploads are cached by it).
@@ -330,6 +388,7 @@ impl PreparedBtf {
             tile: [cb.tile_w, cb.tile_h, cb.tile_cols, self.tone_map.code()],
             strides: [[s[0], s[1], s[2], s[3]], [s[4], s[5], 0, 0]],
             theta,
+            mip: [self.mip_levels() as u32, 0, 0, 0],
         }
     }
 }

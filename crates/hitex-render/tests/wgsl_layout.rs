@@ -124,6 +124,7 @@ fn btf_uniform_matches_the_shader_in_every_layout() {
                 ("tile", offset_of!(BtfFrame, tile)),
                 ("strides", offset_of!(BtfFrame, strides)),
                 ("theta", offset_of!(BtfFrame, theta)),
+                ("mip", offset_of!(BtfFrame, mip)),
             ],
         );
     }
@@ -202,5 +203,26 @@ fn nurbs_modes_are_named_alike_in_both_programs() {
         for k in 0..=9 {
             assert!(!raw.contains(&format!("mode == {k}u")), "nurbs.wgsl compares the mode with {k}u");
         }
+    }
+}
+
+/// Every composed shader passes naga's validator (types, builtins, uniformity), so a
+/// shader error shows here with its line rather than as an invalid pipeline at draw time.
+#[test]
+fn every_composed_shader_validates() {
+    let mut sources = vec![
+        ("textured".to_string(), TEXTURED_WGSL.to_string()),
+        ("nurbs".to_string(), nurbs_source()),
+        ("terrain".to_string(), TERRAIN_WGSL.to_string()),
+    ];
+    for layout in Layout::ALL {
+        sources.push((format!("btf {layout:?}"), layout_source(layout)));
+    }
+    for (name, src) in sources {
+        let module =
+            naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
     }
 }

@@ -7,6 +7,7 @@
 //! * [`layout`]: the codebook layouts (a)–(f) of Fig. 4 and their filtered reads;
 //! * [`synth`]: procedural BTFs rendered from height-field micro-geometry;
 //! * [`index`]: index maps grown from the sample by texture synthesis;
+//! * [`mip`]: MIP pyramids of index maps with per-level codebooks;
 //! * [`cache`]: the texture-cache model behind the paper's load efficiency.
 
 pub mod cache;
@@ -15,6 +16,7 @@ pub mod frames;
 pub mod grid;
 pub mod index;
 pub mod layout;
+pub mod mip;
 pub mod synth;
 
 pub use dataset::Btf;

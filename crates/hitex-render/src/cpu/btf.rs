@@ -22,7 +22,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::raster::{Block, BlockShader};
-use super::simd::{LANES, Lanes, V3, floor, lanes};
+use super::simd::{LANES, Lanes, V3, ddx, ddy, floor, lanes};
 use crate::btf::{BtfFrame, BtfVertex, MAX_RENDER_THETA, PreparedBtf};
 use glam::Vec3;
 use hitex_core::btf::frames::acos;
@@ -93,8 +93,16 @@ impl<'a> BtfProgram<'a> {
         }
     }
 
-    /// Shades one fragment in linear RGB, reporting its reads to `sink`.
+    /// Shades one fragment in linear RGB, reporting its reads to `sink`
+    /// (at MIP level 0).
     pub fn shade_linear<S: FetchSink>(&self, v: &[f32; VARYINGS], sink: &mut S) -> Vec3 {
+        self.shade_linear_at(v, 0.0, sink)
+    }
+
+    /// [`BtfProgram::shade_linear`] at MIP level of detail `lod` (the
+    /// index map's log₂ footprint, [`BtfProgram::lod_lanes`]): its two
+    /// levels' index texels blended trilinearly.
+    pub fn shade_linear_at<S: FetchSink>(&self, v: &[f32; VARYINGS], lod: f32, sink: &mut S) -> Vec3 {
         let at = |i: usize| Vec3::new(v[i], v[i + 1], v[i + 2]);
         let p = at(0);
         // per-pixel frame; the normal faces the viewer
@@ -113,21 +121,30 @@ impl<'a> BtfProgram<'a> {
         let (tl, pl) = angles(p, n, u, w, self.light);
         let g = &self.scene.grid;
         let l = AngleLerps { tc: g.lerp_theta(tc), pc: g.lerp_phi(pc), tl: g.lerp_theta(tl), pl: g.lerp_phi(pl) };
-        // index map: four texels around T, bilinear weights (4 index reads)
-        let idx = &self.scene.index;
-        let (x0, x1, fx) = index_taps(v[12], idx.width);
-        let (y0, y1, fy) = index_taps(v[13], idx.height);
+        // index map: four texels around T, bilinear weights (4 index reads),
+        // at the level pair of `lod` when MIP mapped
         let cb: &Codebook = &self.scene.codebook;
-        let corners = [
-            (x0, y0, (1.0 - fx) * (1.0 - fy)),
-            (x1, y0, fx * (1.0 - fy)),
-            (x0, y1, (1.0 - fx) * fy),
-            (x1, y1, fx * fy),
-        ];
+        let (l0, l1, t) = self.level_pair(lod);
+        let mut corners = Vec::with_capacity(8);
+        for (level, lw) in [(l0, 1.0 - t), (l1, t)] {
+            if lw == 0.0 && level == l1 {
+                continue;
+            }
+            let map = self.scene.mip.get(level).unwrap_or(&self.scene.index);
+            let (x0, x1, fx) = index_taps(v[12], map.width);
+            let (y0, y1, fy) = index_taps(v[13], map.height);
+            for (x, y, w) in [
+                (x0, y0, (1.0 - fx) * (1.0 - fy)),
+                (x1, y0, fx * (1.0 - fy)),
+                (x0, y1, (1.0 - fx) * fy),
+                (x1, y1, fx * fy),
+            ] {
+                corners.push((map.get(x, y), w * lw));
+            }
+        }
         let mut acc = Vec3::ZERO;
         if S::COUNTS {
-            for (x, y, wgt) in corners {
-                let e = idx.get(x, y);
+            for (e, wgt) in corners {
                 // hexa-linear over the angles through the layout's reads
                 acc += cb.corner(e[0] as u32, e[1] as u32, &l, sink) * wgt;
             }
@@ -135,12 +152,9 @@ impl<'a> BtfProgram<'a> {
             // the same reads with the per-pixel invariants hoisted
             let plan = cb.plan(&l);
             let mut a4 = glam::Vec4::ZERO;
-            let half: &[Half4] = bytemuck::cast_slice(&self.scene.linear);
-            for (x, y, wgt) in corners {
-                let (su, sv) = {
-                    let e = idx.get(x, y);
-                    (e[0] as u32, e[1] as u32)
-                };
+            let half: &[Half4] = bytemuck::cast_slice(&cb.half);
+            for (e, wgt) in corners {
+                let (su, sv) = (e[0] as u32, e[1] as u32);
                 a4 += if cb.is_hdr() {
                     cb.corner_planned_linear(&plan, su, sv, half)
                 } else {
@@ -150,6 +164,31 @@ impl<'a> BtfProgram<'a> {
             acc = a4.truncate();
         }
         acc * self.exposure
+    }
+
+    /// The MIP level pair of a level of detail and the second's weight
+    /// (level 0 alone without MIP mapping or when magnified).
+    #[inline(always)]
+    fn level_pair(&self, lod: f32) -> (usize, usize, f32) {
+        let top = self.scene.mip_levels() - 1;
+        let lod = if lod.is_nan() { 0.0 } else { lod.clamp(0.0, top as f32) };
+        let l0 = floor(lod);
+        let k = l0 as usize;
+        (k, (k + 1).min(top), lod - l0)
+    }
+
+    /// The level of detail of a block's lanes: log₂ of the larger screen
+    /// derivative of the index-map coordinates, in level-0 texels (seed 001,
+    /// eq. 2, the Vulkan ρ), from the fine derivatives within each quad.
+    #[inline(always)]
+    pub fn lod_lanes(&self, v: &[Lanes; VARYINGS]) -> Lanes {
+        let (w, h) = (self.scene.index.width as f32, self.scene.index.height as f32);
+        let (ux, uy, vx, vy) = (ddx(&v[12]), ddy(&v[12]), ddx(&v[13]), ddy(&v[13]));
+        lanes!(|i| {
+            let (a, b, c, d) = (ux[i] * w, vx[i] * h, uy[i] * w, vy[i] * h);
+            let rho = (a * a + b * b).max(c * c + d * d).sqrt();
+            if rho.is_finite() && rho > 0.0 { rho.log2() } else { 0.0 }
+        })
     }
 
     /// A block's 16 lanes in linear RGB (R, G, B lanes): the same steps as
@@ -267,25 +306,52 @@ impl<'a> BtfProgram<'a> {
         }
         debug_assert_eq!(n, NT);
         let idx = &self.scene.index;
-        // index map: four texels around T per lane, bilinear weights
-        let (x0, x1, fx) = index_taps_lanes(&v[12], idx.width);
-        let (y0, y1, fy) = index_taps_lanes(&v[13], idx.height);
-        let mut at = [[0u32; LANES]; 4];
-        let mut wgt = [[0.0f32; LANES]; 4];
-        for i in 0..LANES {
-            let (x0, x1, fx, y0, y1, fy) = (x0[i], x1[i], fx[i], y0[i], y1[i], fy[i]);
-            let (r0, r1) = (y0 * idx.width, y1 * idx.width);
-            at[0][i] = r0 + x0;
-            at[1][i] = r0 + x1;
-            at[2][i] = r1 + x0;
-            at[3][i] = r1 + x1;
-            wgt[0][i] = (1.0 - fx) * (1.0 - fy);
-            wgt[1][i] = fx * (1.0 - fy);
-            wgt[2][i] = (1.0 - fx) * fy;
-            wgt[3][i] = fx * fy;
-        }
-        let entries: &[u32] = bytemuck::cast_slice(&idx.entries);
-        let texels: &[u64] = &self.scene.linear;
+        // index map: four texels around T per lane, bilinear weights; with
+        // MIP mapping four per level of the lane's pair (8 when a lane blends)
+        let mut at = [[0u32; LANES]; 8];
+        let mut wgt = [[0.0f32; LANES]; 8];
+        let (entries, nq): (&[u32], usize) = if self.scene.mip.len() > 1 {
+            let lod = self.lod_lanes(v);
+            let mut blend = false;
+            for i in 0..LANES {
+                let (l0, l1, t) = self.level_pair(lod[i]);
+                blend |= t > 0.0 && lit & (1 << i) != 0;
+                for (s, (level, lw)) in [(l0, 1.0 - t), (l1, t)].into_iter().enumerate() {
+                    let map = &self.scene.mip[level];
+                    let base = self.scene.mip_offsets[level];
+                    let (x0, x1, fx) = index_taps(v[12][i], map.width);
+                    let (y0, y1, fy) = index_taps(v[13][i], map.height);
+                    let (r0, r1) = (base + y0 * map.width, base + y1 * map.width);
+                    let q = 4 * s;
+                    at[q][i] = r0 + x0;
+                    at[q + 1][i] = r0 + x1;
+                    at[q + 2][i] = r1 + x0;
+                    at[q + 3][i] = r1 + x1;
+                    wgt[q][i] = (1.0 - fx) * (1.0 - fy) * lw;
+                    wgt[q + 1][i] = fx * (1.0 - fy) * lw;
+                    wgt[q + 2][i] = (1.0 - fx) * fy * lw;
+                    wgt[q + 3][i] = fx * fy * lw;
+                }
+            }
+            (&self.scene.mip_entries, if blend { 8 } else { 4 })
+        } else {
+            let (x0, x1, fx) = index_taps_lanes(&v[12], idx.width);
+            let (y0, y1, fy) = index_taps_lanes(&v[13], idx.height);
+            for i in 0..LANES {
+                let (x0, x1, fx, y0, y1, fy) = (x0[i], x1[i], fx[i], y0[i], y1[i], fy[i]);
+                let (r0, r1) = (y0 * idx.width, y1 * idx.width);
+                at[0][i] = r0 + x0;
+                at[1][i] = r0 + x1;
+                at[2][i] = r1 + x0;
+                at[3][i] = r1 + x1;
+                wgt[0][i] = (1.0 - fx) * (1.0 - fy);
+                wgt[1][i] = fx * (1.0 - fy);
+                wgt[2][i] = (1.0 - fx) * fy;
+                wgt[3][i] = fx * fy;
+            }
+            (bytemuck::cast_slice(&idx.entries), 4)
+        };
+        let texels: &[u64] = if HDR { &cb.half } else { &self.scene.linear };
         if entries.is_empty() || texels.is_empty() {
             return;
         }
@@ -297,7 +363,7 @@ impl<'a> BtfProgram<'a> {
         let (su_on_x, sv_on_y) = (r.u_on_x as u32, r.v_on_y as u32);
         let mut acc = [[0.0f32; LANES]; 3];
         // every lane reads (clamped indices), so that the reads are gathers
-        for q in 0..4 {
+        for q in 0..nq {
             // the index texel: sample texel (su, sv) (one read)
             let mut key = [0u32; LANES];
             let mut shift = [0u32; LANES];

@@ -60,6 +60,7 @@ pub(crate) struct BtfGpu {
 
 impl BtfGpu {
     fn new(device: &wgpu::Device, layout: Layout) -> Result<Self, GpuError> {
+        let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let source = layout_source(layout);
         // SAFETY: btf.wgsl reads index texels at coordinates wrapped into the
@@ -114,7 +115,9 @@ impl BtfGpu {
             wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3, 4 => Float32x2];
         let stride = std::mem::size_of::<BtfVertex>() as u64;
         let pipeline = super::mesh_pipeline(device, "btf", &module, &[&group_layout], stride, &attributes);
-        if let Some(e) = pollster::block_on(scope.pop()) {
+        let validation = pollster::block_on(scope.pop());
+        // a shader the driver's compiler rejects is an internal error, not a validation one
+        if let Some(e) = validation.or(pollster::block_on(internal.pop())) {
             return Err(GpuError::Device(format!("BTF pipeline ({}) creation failed: {e}", layout.label())));
         }
         let frame = device.create_buffer(&wgpu::BufferDescriptor {
@@ -208,12 +211,18 @@ impl GpuRenderer {
             let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
             let codebook = codebook_texture(device, queue, scene)?;
             let idx = &scene.index;
+            // the index map's MIP chain, level after level (one level without MIP mapping)
+            let levels: Vec<u32> = if scene.mip.len() > 1 {
+                scene.mip.iter().flat_map(|l| l.entries.iter().map(|e| e[0] as u32 | (e[1] as u32) << 16)).collect()
+            } else {
+                idx.entries.iter().map(|e| e[0] as u32 | (e[1] as u32) << 16).collect()
+            };
             let index_tex = device.create_texture_with_data(
                 queue,
                 &wgpu::TextureDescriptor {
                     label: Some("btf index"),
                     size: wgpu::Extent3d { width: idx.width, height: idx.height, depth_or_array_layers: 1 },
-                    mip_level_count: 1,
+                    mip_level_count: scene.mip_levels() as u32,
                     sample_count: 1,
                     dimension: wgpu::TextureDimension::D2,
                     format: wgpu::TextureFormat::Rg16Uint,
@@ -221,7 +230,7 @@ impl GpuRenderer {
                     view_formats: &[],
                 },
                 wgpu::util::TextureDataOrder::LayerMajor,
-                bytemuck::cast_slice(&idx.entries),
+                bytemuck::cast_slice(&levels),
             );
             let repeat_depth = layout.spec().depth.is_some_and(|a| matches!(a, Axis::PhiC | Axis::PhiL));
             let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
