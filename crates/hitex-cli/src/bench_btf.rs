@@ -58,6 +58,11 @@ pub struct BtfArgs {
     /// Also write a chart (SVG) of frame rates and load efficiency, like Fig. 5/6.
     #[arg(long)]
     pub chart: Option<PathBuf>,
+    /// Also run each layout minified (the index map repeated 8 times over
+    /// the quad) without and with MIP mapping: cases `layout-X-r8` and
+    /// `layout-X-r8-mip`.
+    #[arg(long)]
+    pub mip: bool,
     #[command(flatten)]
     pub simd: crate::bench::SimdArg,
 }
@@ -199,20 +204,26 @@ pub fn btf(args: BtfArgs) -> Result<(), CliError> {
     let mut snr = Vec::new();
     let mut cache_rows = Vec::new();
     let cache_cfg = CacheConfig { bytes: args.cache_kib << 10, ways: args.cache_ways, bc1: false };
-    let variants: Vec<(Layout, bool)> = layouts
+    // (layout, BC1, minified: none / without MIP / with MIP)
+    let mut variants: Vec<(Layout, bool, u8)> = layouts
         .iter()
-        .flat_map(|&l| if args.no_bc1 { vec![(l, false)] } else { vec![(l, false), (l, true)] })
+        .flat_map(|&l| if args.no_bc1 { vec![(l, false, 0)] } else { vec![(l, false, 0), (l, true, 0)] })
         .collect();
-    for &(layout, compressed) in &variants {
-        let name = case_name(layout, compressed);
+    let mip = if args.mip {
+        variants.extend(layouts.iter().flat_map(|&l| [(l, false, 1), (l, false, 2)]));
+        Some(crate::btf_cmd::mip_with_progress(&btf, &index, quiet)?)
+    } else {
+        None
+    };
+    for &(layout, compressed, minified) in &variants {
+        let name = case_name(layout, compressed) + ["", "-r8", "-r8-mip"][minified as usize];
         let t = Instant::now();
-        let prepared = PreparedBtf::new(
-            &btf,
-            layout,
-            compressed.then_some(Bc1Encoder::Ispc),
-            index.clone(),
-            BtfSurface::quad(2.0, 1.0),
-        )?;
+        let enc = compressed.then_some(Bc1Encoder::Ispc);
+        let repeats = if minified > 0 { 8.0 } else { 1.0 };
+        let prepared = match (&mip, minified) {
+            (Some(m), 2) => PreparedBtf::with_mip(m, layout, enc, BtfSurface::quad(2.0, repeats))?,
+            _ => PreparedBtf::new(&btf, layout, enc, index.clone(), BtfSurface::quad(2.0, repeats))?,
+        };
         let prep_ms = t.elapsed().as_secs_f64() * 1e3;
         if compressed {
             // quality and time of BC1 on this layout
@@ -233,8 +244,11 @@ pub fn btf(args: BtfArgs) -> Result<(), CliError> {
         let cfg = CacheConfig { bc1: compressed, ..cache_cfg };
         let cb = &prepared.codebook;
         let mut model = CacheModel::new(cfg, cb.width, cb.height).map_err(|e| CliError::Input(e.to_string()))?;
+        // the quad faces the camera: its footprint, index texels per pixel, is
+        // about the same everywhere, so the MIP case is modelled at that level
+        let lod = if minified == 2 { (index.width as f32 * repeats / args.quad as f32).log2().max(0.0) } else { 0.0 };
         for v in &frags {
-            program.shade_linear(v, &mut model);
+            program.shade_linear_at(v, lod, &mut model);
         }
         let px = frags.len().max(1) as f64;
         cache_rows.push(CacheRow {

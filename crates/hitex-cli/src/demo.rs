@@ -60,14 +60,17 @@ type Report<'a> = dyn FnMut(&str, &str, &Frame, f64) -> Result<(), CliError> + '
 /// number of images written.
 fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) -> Result<usize, CliError> {
     use crate::btf_cmd::{camera_for, index_preview, index_with_progress, light_for, surface_for, synth_with_progress};
+    use glam::Vec3;
     use hitex_core::btf::Layout;
     use hitex_core::btf::synth::{Material, SynthOptions};
+    use hitex_core::scene::Camera;
     use hitex_core::texture::bc1::Bc1Encoder;
     use hitex_render::btf::{BtfSurface, PreparedBtf};
     let side = (w / 5).clamp(1, h.max(1));
     let mut panels = Vec::new();
     let mut ms_sum = 0.0;
     let mut corduroy = None;
+    let mut woven = None;
     for m in Material::ALL {
         let btf = synth_with_progress(m, &SynthOptions::default(), true)?;
         let index = index_with_progress(&btf, 64, 7, 3, true)?;
@@ -78,8 +81,10 @@ fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) ->
         let t = Instant::now();
         panels.push(render_frame(r, &Job::Btf { surface: &p, camera: cam, light }, (side, side))?);
         ms_sum += t.elapsed().as_secs_f64() * 1e3;
-        if m == Material::Corduroy {
-            corduroy = Some((btf, index));
+        match m {
+            Material::Corduroy => corduroy = Some((btf, index)),
+            Material::Woven => woven = Some((btf, index)),
+            _ => {}
         }
     }
     report(
@@ -126,13 +131,60 @@ fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) ->
         &side_by_side(&panels),
         ms_sum,
     )?;
+    // MIP mapping: the woven on a far, grazing quad of 24 repeats beside a 4×4
+    // supersampled reference, and the corduroy on the teapot at 6 repeats,
+    // each without and with the pyramid
+    let (far_btf, far_index) = woven.as_ref().map(|(b, i)| (b, i)).unwrap_or((&btf, &index));
+    let far_mip = crate::btf_cmd::mip_with_progress(far_btf, far_index, true)?;
+    let far = BtfSurface::quad(4.0, 24.0);
+    let far_cam = Camera::new(Vec3::new(0.0, -2.6, 0.9), Vec3::new(0.0, 0.4, 0.0), Vec3::Z, 40.0, 0.05, 20.0)
+        .map_err(|e| CliError::Input(e.to_string()))?;
+    let far_light = light_for(&far, true, 200.0, 30.0);
+    let side = (w / 3).clamp(1, h.max(1));
+    let off = PreparedBtf::new(far_btf, Layout::F, None, far_index.clone(), far.clone())?;
+    let on = PreparedBtf::with_mip(&far_mip, Layout::F, None, far)?;
+    let t = Instant::now();
+    let frames = [
+        render_frame(r, &Job::Btf { surface: &off, camera: far_cam, light: far_light }, (side, side))?,
+        render_frame(r, &Job::Btf { surface: &on, camera: far_cam, light: far_light }, (side, side))?,
+    ];
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    let reference =
+        render_frame(r, &Job::Btf { surface: &off, camera: far_cam, light: far_light }, (side * 4, side * 4))?
+            .downsample(4);
+    let psnr = |f: &Frame| hitex_render::compare_rgba(&f.rgba, &reference.rgba).0.psnr_db;
+    let caption = format!(
+        "BTF MIP, the woven on a far quad of 24 repeats: without ({:.1} dB) | with ({:.1} dB) | 4x4 supersampled reference",
+        psnr(&frames[0]),
+        psnr(&frames[1])
+    );
+    let [a, b] = frames;
+    report("btf-mip.png", &caption, &side_by_side(&[a, b, reference]), ms)?;
+    let mip = crate::btf_cmd::mip_with_progress(&btf, &index, true)?;
+    let teapot = surface_for("teapot", 6.0)?;
+    let (pw, ph) = ((w / 2).max(1), h);
+    let cam = camera_for(&teapot, false, pw as f32 / ph as f32)?;
+    let light = light_for(&teapot, false, -63.0, 45.0);
+    let off = PreparedBtf::new(&btf, Layout::F, None, index.clone(), teapot.clone())?;
+    let on = PreparedBtf::with_mip(&mip, Layout::F, None, teapot)?;
+    let t = Instant::now();
+    let pair = [
+        render_frame(r, &Job::Btf { surface: &off, camera: cam, light }, (pw, ph))?,
+        render_frame(r, &Job::Btf { surface: &on, camera: cam, light }, (pw, ph))?,
+    ];
+    report(
+        "btf-mip-teapot.png",
+        "BTF corduroy at 6 repeats on the teapot: without MIP | with MIP",
+        &side_by_side(&pair),
+        t.elapsed().as_secs_f64() * 1e3,
+    )?;
     report(
         "btf-index.png",
         "index map grown from the 32x32 sample: u,v as red,green | appearance",
         &index_preview(&btf, &index),
         0.0,
     )?;
-    Ok(4)
+    Ok(6)
 }
 
 /// The Olinda pair (SRTM-derived DEM and Landsat 7 ETM+ bands, UTM 25S),

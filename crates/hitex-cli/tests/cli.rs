@@ -150,6 +150,39 @@ fn bench_texture_json_has_the_shared_shape() {
 }
 
 #[test]
+fn bench_btf_mip_adds_the_minified_cases() {
+    let o = hitex(&[
+        "bench",
+        "btf",
+        "--layouts",
+        "f",
+        "--no-bc1",
+        "--mip",
+        "--backends",
+        "cpu",
+        "--frames",
+        "1",
+        "--sample",
+        "8",
+        "--size",
+        "160x120",
+        "--quad",
+        "96",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let cases: Vec<&str> = v["rows"].as_array().unwrap().iter().map(|r| r["case"].as_str().unwrap()).collect();
+    assert_eq!(cases, ["layout-f", "layout-f-r8", "layout-f-r8-mip"]);
+    // the pyramid keeps the minified quad's codebook reads local: less traffic per pixel
+    let bytes = |case: &str| {
+        let rows = v["cache_model"].as_array().unwrap();
+        rows.iter().find(|r| r["case"] == case).unwrap()["bytes_per_pixel"].as_f64().unwrap()
+    };
+    assert!(bytes("layout-f-r8-mip") < bytes("layout-f-r8"), "{}", v["cache_model"]);
+}
+
+#[test]
 fn bench_runs_every_simd_level_and_checks_they_agree() {
     let o = hitex(&["bench", "nurbs", "--backends", "cpu", "--frames", "1", "--size", "48x48", "--simd", "all"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));

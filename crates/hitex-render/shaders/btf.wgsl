@@ -248,17 +248,37 @@ fn tone_map(c: vec3<f32>, mode: u32) -> vec3<f32> {
     return x;
 }
 
+// Where MIP level `level` of the index map lies in the index atlas and its
+// size: level 0 at the origin, every coarser level stacked in a column to its
+// right. One atlas read at texture level 0, because llvmpipe resolves the level
+// of a texel fetch once per SIMD group (see the textured shader).
+fn index_level_rect(level: u32) -> vec4<u32> {
+    let w = frame.sizes.x;
+    let h = frame.sizes.y;
+    if (level == 0u) {
+        return vec4<u32>(0u, 0u, w, h);
+    }
+    var oy = 0u;
+    for (var j = 1u; j < level; j = j + 1u) {
+        oy = oy + max(1u, h >> j);
+    }
+    return vec4<u32>(w, oy, max(1u, w >> level), max(1u, h >> level));
+}
+
 // The four index texels of one MIP level around T, through the layout's
-// reads, bilinearly weighted (4 index reads). The level goes in as i32: naga's
-// GLSL writer passes a u32 level to textureSize, which GLSL has no overload for.
+// reads, bilinearly weighted (4 index reads).
 fn index_level(uv: vec2<f32>, level: u32, l: array<Lerp, 4>) -> vec3<f32> {
-    let size = textureDimensions(index_map, i32(level));
-    let tx = index_taps(uv.x, size.x);
-    let ty = index_taps(uv.y, size.y);
-    let e00 = textureLoad(index_map, vec2<u32>(tx.i0, ty.i0), i32(level)).xy;
-    let e10 = textureLoad(index_map, vec2<u32>(tx.i1, ty.i0), i32(level)).xy;
-    let e01 = textureLoad(index_map, vec2<u32>(tx.i0, ty.i1), i32(level)).xy;
-    let e11 = textureLoad(index_map, vec2<u32>(tx.i1, ty.i1), i32(level)).xy;
+    let r = index_level_rect(level);
+    let tx = index_taps(uv.x, r.z);
+    let ty = index_taps(uv.y, r.w);
+    let x0 = r.x + tx.i0;
+    let x1 = r.x + tx.i1;
+    let y0 = r.y + ty.i0;
+    let y1 = r.y + ty.i1;
+    let e00 = textureLoad(index_map, vec2<u32>(x0, y0), 0).xy;
+    let e10 = textureLoad(index_map, vec2<u32>(x1, y0), 0).xy;
+    let e01 = textureLoad(index_map, vec2<u32>(x0, y1), 0).xy;
+    let e11 = textureLoad(index_map, vec2<u32>(x1, y1), 0).xy;
     // hexa-linear over the angles through the layout's reads
     var acc = fetch_corner(e00.x, e00.y, l) * ((1.0 - tx.f) * (1.0 - ty.f));
     acc = acc + fetch_corner(e10.x, e10.y, l) * (tx.f * (1.0 - ty.f));

@@ -154,28 +154,6 @@ fn mip_of(btf: &Btf) -> hitex_core::btf::mip::BtfMip {
     hitex_core::btf::mip::build_mip(btf, &index(), &|_, _| {}).unwrap()
 }
 
-/// A `k`× larger frame box-filtered in linear light down to its size.
-fn downsample(f: &Frame, k: u32) -> Frame {
-    let (w, h) = (f.width / k, f.height / k);
-    let lin = |b: u8| hitex_core::texture::srgb_to_linear(b as f32 / 255.0);
-    let mut rgba = vec![0u8; (w * h * 4) as usize];
-    for y in 0..h {
-        for x in 0..w {
-            for c in 0..3 {
-                let mut s = 0.0;
-                for dy in 0..k {
-                    for dx in 0..k {
-                        s += lin(f.rgba[(((y * k + dy) * f.width + x * k + dx) * 4 + c) as usize]);
-                    }
-                }
-                rgba[((y * w + x) * 4 + c) as usize] = hitex_core::texture::linear_to_srgb_u8(s / (k * k) as f32);
-            }
-            rgba[((y * w + x) * 4 + 3) as usize] = 255;
-        }
-    }
-    Frame { width: w, height: h, rgba }
-}
-
 #[test]
 fn mip_mapping_matches_a_supersampled_reference_far_better() {
     let (surface, cam) = far_quad(24.0);
@@ -183,7 +161,7 @@ fn mip_mapping_matches_a_supersampled_reference_far_better() {
     let on = PreparedBtf::with_mip(&m, Layout::F, None, surface.clone()).unwrap();
     let off = PreparedBtf::new(small_btf(), Layout::F, None, index(), surface).unwrap();
     let r = CpuRenderer::new();
-    let reference = downsample(&r.render_btf(&off, &cam, LIGHT, W * 8, H * 8).unwrap(), 8);
+    let reference = r.render_btf(&off, &cam, LIGHT, W * 8, H * 8).unwrap().downsample(8);
     let with = r.render_btf(&on, &cam, LIGHT, W, H).unwrap();
     let without = r.render_btf(&off, &cam, LIGHT, W, H).unwrap();
     let psnr = |a: &Frame| hitex_render::compare_rgba(&a.rgba, &reference.rgba).0.psnr_db;

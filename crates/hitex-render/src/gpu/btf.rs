@@ -195,6 +195,33 @@ fn codebook_texture(
     Ok(tex)
 }
 
+/// The index atlas of `scene`: level 0 at the origin, levels 1, 2, … stacked
+/// top to bottom in a column at x = level 0's width. Returns its width, height
+/// and texels (u | v << 16).
+pub(crate) fn index_atlas(scene: &PreparedBtf) -> (u32, u32, Vec<u32>) {
+    let idx = &scene.index;
+    let coarse = scene.mip.get(1..).unwrap_or(&[]);
+    let column_w = coarse.iter().map(|l| l.width).max().unwrap_or(0);
+    let column_h: u32 = coarse.iter().map(|l| l.height).sum();
+    let (w, h) = (idx.width + column_w, idx.height.max(column_h));
+    let mut texels = vec![0u32; w as usize * h as usize];
+    let mut put = |map: &hitex_core::btf::index::IndexMap, ox: u32, oy: u32| {
+        for y in 0..map.height {
+            for x in 0..map.width {
+                let e = map.entries[(y * map.width + x) as usize];
+                texels[((oy + y) * w + ox + x) as usize] = e[0] as u32 | (e[1] as u32) << 16;
+            }
+        }
+    };
+    put(idx, 0, 0);
+    let mut oy = 0;
+    for l in coarse {
+        put(l, idx.width, oy);
+        oy += l.height;
+    }
+    (w, h, texels)
+}
+
 impl GpuRenderer {
     fn prepare_btf(&mut self, scene: &PreparedBtf, frame: &BtfFrame) -> Result<(), RenderError> {
         let layout = scene.layout();
@@ -210,19 +237,23 @@ impl GpuRenderer {
             let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
             let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
             let codebook = codebook_texture(device, queue, scene)?;
-            let idx = &scene.index;
-            // the index map's MIP chain, level after level (one level without MIP mapping)
-            let levels: Vec<u32> = if scene.mip.len() > 1 {
-                scene.mip.iter().flat_map(|l| l.entries.iter().map(|e| e[0] as u32 | (e[1] as u32) << 16)).collect()
-            } else {
-                idx.entries.iter().map(|e| e[0] as u32 | (e[1] as u32) << 16).collect()
-            };
+            // the index map, with its coarser MIP levels (if any) stacked in a
+            // column to its right: one atlas read at texture level 0 (btf.wgsl's
+            // index_level_rect places the levels the same way)
+            let (atlas_w, atlas_h, texels) = index_atlas(scene);
+            let max = device.limits().max_texture_dimension_2d;
+            if atlas_w > max || atlas_h > max {
+                return Err(GpuError::Render(format!(
+                    "the index map with its MIP levels needs {atlas_w}x{atlas_h} texels; the adapter allows {max} per side"
+                ))
+                .into());
+            }
             let index_tex = device.create_texture_with_data(
                 queue,
                 &wgpu::TextureDescriptor {
                     label: Some("btf index"),
-                    size: wgpu::Extent3d { width: idx.width, height: idx.height, depth_or_array_layers: 1 },
-                    mip_level_count: scene.mip_levels() as u32,
+                    size: wgpu::Extent3d { width: atlas_w, height: atlas_h, depth_or_array_layers: 1 },
+                    mip_level_count: 1,
                     sample_count: 1,
                     dimension: wgpu::TextureDimension::D2,
                     format: wgpu::TextureFormat::Rg16Uint,
@@ -230,7 +261,7 @@ impl GpuRenderer {
                     view_formats: &[],
                 },
                 wgpu::util::TextureDataOrder::LayerMajor,
-                bytemuck::cast_slice(&levels),
+                bytemuck::cast_slice(&texels),
             );
             let repeat_depth = layout.spec().depth.is_some_and(|a| matches!(a, Axis::PhiC | Axis::PhiL));
             let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
@@ -306,5 +337,46 @@ impl GpuRenderer {
                 pass.draw_indexed(0..up.count, 0, 0..1);
             }
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::btf::BtfSurface;
+    use hitex_core::btf::synth::{Material, SynthOptions, synthesize};
+    use hitex_core::btf::{AngularGrid, index::IndexMap};
+
+    #[test]
+    fn the_index_atlas_stacks_the_levels_where_the_shader_looks() {
+        let grid = AngularGrid::new(vec![0.0, 40.0], 4).unwrap();
+        let btf = synthesize(Material::Knit, &SynthOptions { grid, size: 4, supersample: 1, exposure: 1.0 }, &|_| {})
+            .unwrap();
+        let map = IndexMap::identity(4, 4, 24, 8);
+        let mip = hitex_core::btf::mip::build_mip(&btf, &map, &|_, _| {}).unwrap();
+        let p = PreparedBtf::with_mip(&mip, Layout::F, None, BtfSurface::quad(2.0, 1.0)).unwrap();
+        let (w, h, texels) = index_atlas(&p);
+        // levels 24x8, 12x4, 6x2, 3x1, 1x1: a 12-wide column of 4 + 2 + 1 + 1 = 8 rows
+        assert_eq!(p.mip.len(), 5);
+        assert_eq!((w, h), (36, 8));
+        // the origin of each level as index_level_rect computes it in btf.wgsl
+        let rect = |k: u32| {
+            let oy: u32 = (1..k).map(|j| (8u32 >> j).max(1)).sum();
+            if k == 0 { (0, 0) } else { (24, oy) }
+        };
+        for (k, level) in p.mip.iter().enumerate() {
+            let (ox, oy) = rect(k as u32);
+            assert_eq!((level.width, level.height), ((24u32 >> k).max(1), (8u32 >> k).max(1)));
+            for y in 0..level.height {
+                for x in 0..level.width {
+                    let e = level.entries[(y * level.width + x) as usize];
+                    assert_eq!(
+                        texels[((oy + y) * w + ox + x) as usize],
+                        e[0] as u32 | (e[1] as u32) << 16,
+                        "level {k}"
+                    );
+                }
+            }
+        }
     }
 }
