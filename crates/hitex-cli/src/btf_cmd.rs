@@ -138,19 +138,23 @@ pub enum BtfCommand {
         #[arg(long, value_enum, default_value_t = ToneMapArg::Auto)]
         tone_map: ToneMapArg,
         /// MIP mapping: on (a pyramid of index maps with per-level
-        /// codebooks, the level chosen per pixel, blended trilinearly) or off
-        /// (the index map and codebook alone, as the paper renders).
-        #[arg(long, value_enum, default_value_t = OnOff::On)]
-        mip: OnOff,
+        /// codebooks, the level chosen per pixel, blended trilinearly), off
+        /// (the index map and codebook alone, as the paper renders), or auto:
+        /// on when the pyramid's codebook fits the size limits, else off with
+        /// a note.
+        #[arg(long, value_enum, default_value_t = MipArg::Auto)]
+        mip: MipArg,
     },
 }
 
-/// A switch.
+/// MIP mapping of a BTF render.
 #[derive(Clone, Copy, ValueEnum, Debug, PartialEq)]
-pub enum OnOff {
-    /// Enabled.
+pub enum MipArg {
+    /// On where the pyramid fits, else off with a note.
+    Auto,
+    /// On; an error where the pyramid does not fit.
     On,
-    /// Disabled.
+    /// Off.
     Off,
 }
 
@@ -638,18 +642,27 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             let light = light_for(&surface, quad, light_azimuth, light_elevation);
             let t = Instant::now();
             let enc = bc1.then_some(Bc1Encoder::Ispc);
+            let with_mip = |surface: BtfSurface| -> Result<(PreparedBtf, String), CliError> {
+                let m = mip_with_progress(&btf, &map, false)?;
+                let note = format!(
+                    ", MIP {} levels ({} entries over the coarser levels; twice the reads where two levels blend)",
+                    m.level_count(),
+                    m.entries[1..].iter().sum::<usize>(),
+                );
+                Ok((PreparedBtf::with_mip(&m, layout, enc, surface)?, note))
+            };
             let (mut prepared, mip_note) = match mip {
-                OnOff::On => {
-                    let m = mip_with_progress(&btf, &map, false)?;
-                    let note = format!(
-                        ", MIP {} levels ({} entries over levels 1–{}; twice the reads where two levels blend)",
-                        m.level_count(),
-                        m.entries[1..].iter().sum::<usize>(),
-                        m.level_count() - 1
-                    );
-                    (PreparedBtf::with_mip(&m, layout, enc, surface)?, note)
-                }
-                OnOff::Off => (PreparedBtf::new(&btf, layout, enc, map, surface)?, String::new()),
+                MipArg::Off => (PreparedBtf::new(&btf, layout, enc, map.clone(), surface)?, String::new()),
+                MipArg::On => with_mip(surface)?,
+                MipArg::Auto => match with_mip(surface.clone()) {
+                    Ok(p) => p,
+                    // a pyramid that does not fit; anything else is an error
+                    Err(CliError::Input(e)) => {
+                        eprintln!("hitex: rendering without MIP mapping ({e}); --mip off says so quietly");
+                        (PreparedBtf::new(&btf, layout, enc, map.clone(), surface)?, ", without MIP".into())
+                    }
+                    Err(e) => return Err(e),
+                },
             };
             let prep_ms = t.elapsed().as_secs_f64() * 1e3;
             prepared.exposure = exposure.exp2();

@@ -476,6 +476,40 @@ fn btf_synth_info_index_render_export_import() {
     assert_eq!(std::fs::read(&h).unwrap(), std::fs::read(&back).unwrap(), "export + import changed the BTF");
 }
 
+#[test]
+fn btf_render_falls_back_without_mip_where_the_pyramid_cannot_fit() {
+    // a 4×600 sample: its pyramid would stack more than 1024 rows
+    let d = tmp("btf-tall");
+    let h = d.join("tall.hbtf");
+    let grid = hitex_core::btf::AngularGrid::new(vec![0.0, 40.0], 2).unwrap();
+    let n = hitex_core::btf::dataset::checked_size(&grid, 4, 600).unwrap();
+    let texels = (0..n).map(|i| (i * 37 % 251) as u8).collect();
+    let btf = hitex_core::btf::Btf::new(grid, 4, 600, texels).unwrap();
+    hitex_io::btf_file::write_hbtf(&h, &btf).unwrap();
+    let idx = d.join("i.png");
+    let out = d.join("r.png");
+    let base = [h.to_str().unwrap(), "-o", out.to_str().unwrap(), "--size", "48x32", "--backend", "cpu"];
+    // index map: the plain tiling, written by the index command at 8 texels a side
+    let o = hitex(&["btf", "index", base[0], "--size", "8", "-o", idx.to_str().unwrap(), "--passes", "1"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut args = vec!["btf", "render"];
+    args.extend(base);
+    args.extend(["--index", idx.to_str().unwrap()]);
+    // auto: rendered without MIP, and told so
+    let o = hitex(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("without MIP mapping") && err.contains("1024"), "{err}");
+    assert!(String::from_utf8_lossy(&o.stdout).contains("without MIP"));
+    // on: a clear refusal, nothing written
+    std::fs::remove_file(&out).unwrap();
+    args.extend(["--mip", "on"]);
+    let o = hitex(&args);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("exceeds the sample side limit"));
+    assert!(!out.exists());
+}
+
 /// One EXR image of constant RGB (half floats) in memory.
 fn exr_rgb(w: usize, h: usize, rgb: [f32; 3]) -> Vec<u8> {
     use exr::prelude::*;

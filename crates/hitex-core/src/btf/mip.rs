@@ -87,10 +87,45 @@ fn dist2(a: &[f32], b: &[f32]) -> f32 {
     a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
 }
 
+/// At most this many points per cluster train the k-means centres.
+const KMEANS_TRAIN_PER_CLUSTER: usize = 8;
+
 /// k-means of `points` (`n × dims`, weights `w`) into `k` clusters; returns
 /// each point's cluster. k-means++ seeding from a fixed seed, then Lloyd
 /// iterations; a cluster left empty takes the point farthest from its own.
+/// Beyond 8 points per cluster (at least 4096) the centres are fitted on an
+/// evenly strided subset and every point then joins its nearest centre.
 fn kmeans(points: &[f32], weights: &[f32], dims: usize, k: usize, seed: u64) -> Vec<usize> {
+    let n = weights.len();
+    let train = (KMEANS_TRAIN_PER_CLUSTER * k).max(4096);
+    if n <= train {
+        return kmeans_fit(points, weights, dims, k, seed).0;
+    }
+    // many more footprints than clusters (a large index map): fit the centres
+    // on an evenly strided subset, then give every footprint its nearest centre
+    let step = n.div_ceil(train);
+    let subset: Vec<usize> = (0..n).step_by(step).collect();
+    let sub_points: Vec<f32> = subset.iter().flat_map(|&i| points[i * dims..(i + 1) * dims].iter().copied()).collect();
+    let sub_weights: Vec<f32> = subset.iter().map(|&i| weights[i]).collect();
+    let (_, centres) = kmeans_fit(&sub_points, &sub_weights, dims, k, seed);
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let p = &points[i * dims..(i + 1) * dims];
+            let mut best = (0, f32::INFINITY);
+            for (c, centre) in centres.chunks_exact(dims).enumerate() {
+                let d = dist2(p, centre);
+                if d < best.1 {
+                    best = (c, d);
+                }
+            }
+            best.0
+        })
+        .collect()
+}
+
+/// [`kmeans`] on every point: each point's cluster and the centres.
+fn kmeans_fit(points: &[f32], weights: &[f32], dims: usize, k: usize, seed: u64) -> (Vec<usize>, Vec<f32>) {
     let n = weights.len();
     let pt = |i: usize| &points[i * dims..(i + 1) * dims];
     let mut rng = Rng(seed);
@@ -161,7 +196,7 @@ fn kmeans(points: &[f32], weights: &[f32], dims: usize, k: usize, seed: u64) -> 
             break;
         }
     }
-    assign
+    (assign, centres)
 }
 
 /// Builds the MIP pyramid of `btf` read through `map` (see the module
@@ -177,6 +212,16 @@ pub fn build_mip(btf: &Btf, map: &IndexMap, progress: &(dyn Fn(usize, usize) + S
     }
     let (mw, mh) = (map.width as usize, map.height as usize);
     let top = (usize::BITS - 1 - mw.max(mh).leading_zeros()) as usize;
+    // the stacked codebook's size is known before any clustering: refuse early
+    let stacked = sh + (1..=top).map(|k| sh.div_ceil(1 << k).max(1)).sum::<usize>();
+    let stacked_rows = u32::try_from(stacked).ok().filter(|&r| r <= super::dataset::MAX_BTF_SIDE).ok_or_else(|| {
+        CoreError::InvalidImage(format!(
+            "the MIP codebook of {sw}x{stacked} texels exceeds the sample side limit of {}",
+            super::dataset::MAX_BTF_SIDE
+        ))
+    })?;
+    super::dataset::checked_size(btf.grid(), sw as u32, stacked_rows)
+        .map_err(|e| CoreError::InvalidImage(format!("the MIP codebook is too large: {e}")))?;
     let feats = features(btf, MIP_FEATURE_DIMS);
     let dims = feats.dims;
     let mut levels = vec![map.clone()];
@@ -440,6 +485,63 @@ mod tests {
         // deterministic
         let again = build_mip(&btf, &map, &|_, _| {}).unwrap();
         assert_eq!(again.btf, mip.btf);
+    }
+
+    #[test]
+    fn many_footprints_are_clustered_from_a_subset_almost_as_well() {
+        // 16 blobs in 4-D, 20,000 points: beyond 8 per cluster and 4096, so
+        // the centres are fitted on a strided subset
+        let (n, dims, k) = (20_000usize, 4usize, 16usize);
+        let mut s = 99u64;
+        let mut unit = || {
+            s = crate::splitmix64(s);
+            (s >> 11) as f32 / (1u64 << 53) as f32
+        };
+        let points: Vec<f32> = (0..n)
+            .flat_map(|i| {
+                let blob = i % k;
+                (0..dims).map(move |d| ((blob >> d) & 1) as f32 * 4.0 + (blob % 3) as f32).collect::<Vec<_>>()
+            })
+            .zip(std::iter::repeat_with(&mut unit))
+            .map(|(c, r)| c + (r - 0.5) * 0.5)
+            .collect();
+        let weights = vec![1.0f32; n];
+        let sse = |assign: &[usize]| {
+            let mut sums = vec![0f64; k * dims];
+            let mut mass = vec![0f64; k];
+            for (i, &c) in assign.iter().enumerate() {
+                mass[c] += 1.0;
+                for d in 0..dims {
+                    sums[c * dims + d] += points[i * dims + d] as f64;
+                }
+            }
+            let mut e = 0.0;
+            for (i, &c) in assign.iter().enumerate() {
+                for d in 0..dims {
+                    let m = sums[c * dims + d] / mass[c];
+                    e += (points[i * dims + d] as f64 - m).powi(2);
+                }
+            }
+            e
+        };
+        let subset = kmeans(&points, &weights, dims, k, 1);
+        let (full, _) = kmeans_fit(&points, &weights, dims, k, 1);
+        assert!(subset.iter().all(|&c| c < k));
+        let (a, b) = (sse(&subset), sse(&full));
+        assert!(a <= b * 1.1 + 1e-9, "subset fit SSE {a} vs full fit {b}");
+    }
+
+    #[test]
+    fn an_oversized_pyramid_is_refused_before_any_clustering() {
+        let grid = AngularGrid::new(vec![0.0], 1).unwrap();
+        let btf = Btf::new(grid, 4, 600, vec![128; 4 * 600 * 3]).unwrap();
+        let calls = std::sync::atomic::AtomicUsize::new(0);
+        let e = build_mip(&btf, &IndexMap::identity(4, 600, 4, 600), &|_, _| {
+            calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        })
+        .unwrap_err();
+        assert!(e.to_string().contains("exceeds the sample side limit"), "{e}");
+        assert_eq!(calls.load(std::sync::atomic::Ordering::Relaxed), 0, "work began before the refusal");
     }
 
     #[test]
