@@ -181,6 +181,8 @@ impl GpuRenderer {
     /// Builds the pipeline on an opened context.
     fn on(ctx: GpuContext) -> Result<Self, GpuError> {
         let device = &ctx.device;
+        // a shader the driver's compiler rejects is an internal error, not a validation one
+        let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         // Bounds checks are ours, not naga's: every texel index goes through
         // wrap_index() against the level size, every level through the clamp of
@@ -235,7 +237,8 @@ impl GpuRenderer {
             std::mem::size_of::<Vertex>() as u64,
             &attributes,
         );
-        if let Some(e) = pollster::block_on(scope.pop()) {
+        let validation = pollster::block_on(scope.pop());
+        if let Some(e) = validation.or(pollster::block_on(internal.pop())) {
             return Err(GpuError::Device(format!("pipeline creation failed: {e}")));
         }
         let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {

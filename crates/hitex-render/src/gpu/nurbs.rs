@@ -47,6 +47,8 @@ fn texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
 
 impl NurbsGpu {
     fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
+        // a shader the driver's compiler rejects is an internal error, not a validation one
+        let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         // SAFETY: nurbs.wgsl indexes knots and control points through spans
         // found inside validated knot vectors, and its local arrays with
@@ -80,7 +82,8 @@ impl NurbsGpu {
             std::mem::size_of::<NurbsVertex>() as u64,
             &attributes,
         );
-        if let Some(e) = pollster::block_on(scope.pop()) {
+        let validation = pollster::block_on(scope.pop());
+        if let Some(e) = validation.or(pollster::block_on(internal.pop())) {
             return Err(GpuError::Device(format!("NURBS pipeline creation failed: {e}")));
         }
         let frame = device.create_buffer(&wgpu::BufferDescriptor {

@@ -40,6 +40,8 @@ pub(crate) struct FlyGpu {
 
 impl FlyGpu {
     fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
+        // a shader the driver's compiler rejects is an internal error, not a validation one
+        let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         // SAFETY: terrain.wgsl indexes `origins` with z < levels ≤ 32 (checked
         // before upload), `slots` with slot indices inside the window of each
@@ -151,7 +153,8 @@ impl FlyGpu {
             })
             .collect();
         let sky_pipeline = make("fly sky", "vs_sky", "fs_sky", &[], depth(false, wgpu::CompareFunction::LessEqual), 0);
-        if let Some(e) = pollster::block_on(scope.pop()) {
+        let validation = pollster::block_on(scope.pop());
+        if let Some(e) = validation.or(pollster::block_on(internal.pop())) {
             return Err(GpuError::Device(format!("flight pipeline creation failed: {e}")));
         }
         let uniform = device.create_buffer(&wgpu::BufferDescriptor {
