@@ -436,7 +436,13 @@ impl Codebook {
         };
         let row_bytes = width as usize * 4;
         let mut texels = vec![0u8; row_bytes * height as usize * depth as usize];
-        texels.par_chunks_mut(row_bytes).enumerate().for_each(|(r, row)| {
+        // an HDR BTF also gets its half floats, from the same walk: each texel names its source
+        let hdr = btf.is_hdr();
+        let mut half = vec![0u64; if hdr { texels.len() / 4 } else { 0 }];
+        let half_rows: Vec<&mut [u64]> = if hdr { half.chunks_mut(width as usize).collect() } else { Vec::new() };
+        let mut half_rows: Vec<Option<&mut [u64]>> = half_rows.into_iter().map(Some).collect();
+        half_rows.resize_with(texels.len() / row_bytes.max(1), || None);
+        texels.par_chunks_mut(row_bytes).zip(half_rows.into_par_iter()).enumerate().for_each(|(r, (row, mut hrow))| {
             let (z, y) = (r as u32 / height, r as u32 % height);
             let (trow, iy) = (y / tile_h, y % tile_h);
             for x in 0..width {
@@ -449,29 +455,12 @@ impl Codebook {
                 let light = g.direction(idx[4] as usize, idx[5] as usize);
                 let t = btf.texel(view, light, idx[0], idx[1]);
                 row[x as usize * 4..x as usize * 4 + 4].copy_from_slice(&[t[0], t[1], t[2], 255]);
+                if let (Some(h), Some(t)) = (hrow.as_deref_mut(), btf.texel_half(view, light, idx[0], idx[1])) {
+                    h[x as usize] = t[0] as u64 | (t[1] as u64) << 16 | (t[2] as u64) << 32 | HALF_ONE << 48;
+                }
             }
         });
-        if btf.is_hdr() {
-            // the same walk over the half floats: each RGBA8 texel names its source
-            let mut half = vec![0u64; texels.len() / 4];
-            half.par_chunks_mut(width as usize).enumerate().for_each(|(r, row)| {
-                let (z, y) = (r as u32 / height, r as u32 % height);
-                let (trow, iy) = (y / tile_h, y % tile_h);
-                for x in 0..width {
-                    let k = trow * cb.tile_cols + x / tile_w;
-                    if k >= cb.tile_count {
-                        continue;
-                    }
-                    let idx = cb.source_of(&spec, k, x % tile_w, iy, z);
-                    let view = g.direction(idx[2] as usize, idx[3] as usize);
-                    let light = g.direction(idx[4] as usize, idx[5] as usize);
-                    if let Some(t) = btf.texel_half(view, light, idx[0], idx[1]) {
-                        row[x as usize] = t[0] as u64 | (t[1] as u64) << 16 | (t[2] as u64) << 32 | HALF_ONE << 48;
-                    }
-                }
-            });
-            cb.half = half;
-        }
+        cb.half = half;
         cb.texels = texels;
         Ok(cb)
     }
