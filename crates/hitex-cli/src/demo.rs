@@ -401,6 +401,14 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
         &side_by_side(&[a, b]),
         ma + mb,
     )?;
+    let (a, ma) = nurbs(&teapot, NurbsMode::K1, 8, 0.6)?;
+    let (b, mb) = nurbs(&teapot, NurbsMode::K2, 8, 0.6)?;
+    report(
+        "principal.png",
+        "principal curvatures of the teapot, exact per pixel: larger k1 | smaller k2",
+        &side_by_side(&[a, b]),
+        ma + mb,
+    )?;
     let mut pull = |dir: glam::Vec3, tolerance: f32| -> Result<(Frame, f64), CliError> {
         let mut p = crate::nurbs_cmd::prepare(&teapot, 8);
         p.mode = NurbsMode::Draft;
@@ -419,6 +427,26 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
     report(
         "draft.png",
         "draft against a pull direction, exact per pixel: +Z within 1 deg | +X within 3 deg",
+        &side_by_side(&[a, b]),
+        ma + mb,
+    )?;
+
+    let mut lines = |isolines: u32, sections: Option<(glam::Vec3, f32)>| -> Result<(Frame, f64), CliError> {
+        let mut p = crate::nurbs_cmd::prepare(&teapot, 8);
+        p.mode = NurbsMode::Shaded;
+        p.isolines = isolines;
+        // twelve sections over the model's height
+        p.sections = sections.map(|(n, k)| (n, 2.0 * p.bounds.1 / k));
+        let cam = p.camera.orbit(0.6);
+        let t = Instant::now();
+        let f = render_frame(&mut r, &Job::Nurbs { model: &p, camera: cam }, (side, side))?;
+        Ok((f, t.elapsed().as_secs_f64() * 1e3))
+    };
+    let (a, ma) = lines(4, None)?;
+    let (b, mb) = lines(0, Some((glam::Vec3::Z, 16.0)))?;
+    report(
+        "lines.png",
+        "teapot: 4 isoparametric lines per patch | sections z = const, exact per pixel",
         &side_by_side(&[a, b]),
         ma + mb,
     )?;

@@ -85,6 +85,10 @@ pub enum ModeArg {
     Draft,
     /// Where a ball tool of radius --min-radius cannot reach (concave, tighter than it).
     Radius,
+    /// The larger principal curvature κ1.
+    K1,
+    /// The smaller principal curvature κ2.
+    K2,
 }
 
 impl From<ModeArg> for NurbsMode {
@@ -100,6 +104,8 @@ impl From<ModeArg> for NurbsMode {
             ModeArg::Normal => NurbsMode::Normal,
             ModeArg::Draft => NurbsMode::Draft,
             ModeArg::Radius => NurbsMode::Radius,
+            ModeArg::K1 => NurbsMode::K1,
+            ModeArg::K2 => NurbsMode::K2,
         }
     }
 }
@@ -152,6 +158,15 @@ pub struct RenderArgs {
     /// Draw patch boundaries over the display mode.
     #[arg(long)]
     pub boundaries: bool,
+    /// Draw N isoparametric lines per patch and direction (equal steps of
+    /// each patch's parameter range, its edges included) over the display mode.
+    #[arg(long, value_name = "N")]
+    pub isolines: Option<u32>,
+    /// Draw the section curves of a family of parallel planes: AXIS,SPACING
+    /// (`z,0.5`: the planes z = k·0.5) or X,Y,Z,SPACING for any normal;
+    /// spacing in model units.
+    #[arg(long, value_name = "AXIS,SPACING", value_parser = parse_sections, allow_hyphen_values = true)]
+    pub sections: Option<(Vec3, f32)>,
     /// Raise patches to the nearest prepared degree above them (3 or 5) by
     /// exact degree elevation (the paper's design: one kernel per prepared degree).
     #[arg(long)]
@@ -419,6 +434,8 @@ pub fn mode_legend(f: &mut hitex_render::Frame, p: &PreparedNurbs, user_range: b
     let (name, units, rule, range) = match p.mode {
         NurbsMode::Gauss => ("GAUSS K", "1/LENGTH²", "±2×P75|K|", p.curvature_range[0]),
         NurbsMode::Mean => ("MEAN H", "1/LENGTH", "±2×P75|H|", p.curvature_range[1]),
+        NurbsMode::K1 => ("MAX K1", "1/LENGTH", "±2×P75 CURVED", p.curvature_range[2]),
+        NurbsMode::K2 => ("MIN K2", "1/LENGTH", "±2×P75 CURVED", p.curvature_range[2]),
         NurbsMode::Radius => {
             let q = |c: [f32; 3]| c.map(|x| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
             let k = hitex_render::cpu::nurbs::RADIUS_COLORS;
@@ -453,7 +470,10 @@ pub fn mode_legend(f: &mut hitex_render::Frame, p: &PreparedNurbs, user_range: b
 
 /// Whether `mode` draws a legend (and so a view keeps its strip clear).
 pub fn has_legend(mode: NurbsMode) -> bool {
-    matches!(mode, NurbsMode::Gauss | NurbsMode::Mean | NurbsMode::Draft | NurbsMode::Radius)
+    matches!(
+        mode,
+        NurbsMode::Gauss | NurbsMode::Mean | NurbsMode::K1 | NurbsMode::K2 | NurbsMode::Draft | NurbsMode::Radius
+    )
 }
 
 /// A number in at most two decimals without trailing zeros: `1`, `0.71`, `-2.5`.
@@ -466,6 +486,20 @@ fn compact(x: f32) -> String {
 /// `0.00, 0.00, 1.00`
 fn vec3_text(v: Vec3) -> String {
     format!("{:.2}, {:.2}, {:.2}", v.x, v.y, v.z)
+}
+
+/// Section planes: `AXIS,SPACING` or `X,Y,Z,SPACING` (a finite normal, not
+/// zero; a finite positive spacing).
+fn parse_sections(s: &str) -> Result<(Vec3, f32), String> {
+    let Some((axis, spacing)) = s.rsplit_once(',') else {
+        return Err(format!("'{s}' is not AXIS,SPACING (e.g. z,0.5) or X,Y,Z,SPACING"));
+    };
+    let normal = parse_pull(axis)?;
+    let spacing: f32 = spacing.trim().parse().map_err(|_| format!("spacing '{spacing}' is not a number"))?;
+    if !(spacing.is_finite() && spacing > 0.0) {
+        return Err(format!("spacing {spacing} must be finite and positive"));
+    }
+    Ok((normal, spacing))
 }
 
 /// A pull direction: `X,Y,Z` (not zero, finite) or an axis name.
@@ -622,8 +656,15 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             p.bands = a.bands;
             p.stripes = a.stripes;
             p.boundaries = a.boundaries;
+            if let Some(n) = a.isolines {
+                if !(1..=1000).contains(&n) {
+                    return Err(CliError::Input(format!("--isolines {n} must be in 1…1000 lines per patch")));
+                }
+                p.isolines = n;
+            }
+            p.sections = a.sections;
             if let Some(r) = a.range {
-                let slot = if p.mode == NurbsMode::Gauss { 0 } else { 1 };
+                let slot = p.curvature_slot();
                 p.curvature_range[slot] = r;
             }
             if a.elevate {
@@ -681,17 +722,37 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                     t = a.draft_tolerance
                 );
             }
-            if matches!(p.mode, NurbsMode::Gauss | NurbsMode::Mean) {
-                let range = if p.mode == NurbsMode::Gauss { p.curvature_range[0] } else { p.curvature_range[1] };
+            if matches!(p.mode, NurbsMode::Gauss | NurbsMode::Mean | NurbsMode::K1 | NurbsMode::K2) {
+                let range = p.curvature_range[p.curvature_slot()];
                 let v = hitex_render::legend::format_value(range);
                 println!(
-                    "colour ramp: blue −{v} … white 0 … red +{v} (1/length{}; {})",
+                    "colour ramp: blue −{v} … white 0 … red +{v} (1/length{}; {}){}",
                     if p.mode == NurbsMode::Gauss { "²" } else { "" },
                     if a.range.is_some() {
                         "as --range gave"
+                    } else if matches!(p.mode, NurbsMode::K1 | NurbsMode::K2) {
+                        "± twice the area-weighted 75th percentile of max(|κ1|, |κ2|) over the curved part; --range to set"
                     } else {
                         "± twice the area-weighted 75th percentile over the surface; --range to set"
+                    },
+                    if p.mode == NurbsMode::Gauss {
+                        ""
+                    } else {
+                        "; positive where the surface bends towards the viewer (concave as seen)"
                     }
+                );
+            }
+            if p.isolines > 0 {
+                println!(
+                    "isoparametric lines: {} per patch and direction (grey), at equal steps of each patch's parameter range",
+                    p.isolines
+                );
+            }
+            if let Some((n, spacing)) = p.sections {
+                println!(
+                    "sections (magenta): the planes ({}) · P = k × {}, exact per pixel",
+                    vec3_text(n),
+                    hitex_render::legend::format_value(spacing)
                 );
             }
             Ok(())

@@ -189,7 +189,7 @@ struct BtfView {
     light: [f32; 2],
 }
 
-const NURBS_MODES: [(NurbsMode, &str); 10] = [
+const NURBS_MODES: [(NurbsMode, &str); 12] = [
     (NurbsMode::Shaded, "shaded"),
     (NurbsMode::Isophote, "isophote"),
     (NurbsMode::Zebra, "zebra"),
@@ -198,6 +198,8 @@ const NURBS_MODES: [(NurbsMode, &str); 10] = [
     (NurbsMode::Radius, "radius"),
     (NurbsMode::Gauss, "gauss"),
     (NurbsMode::Mean, "mean"),
+    (NurbsMode::K1, "k1"),
+    (NurbsMode::K2, "k2"),
     (NurbsMode::VertexNormals, "vertex-normals"),
     (NurbsMode::Normal, "normal"),
 ];

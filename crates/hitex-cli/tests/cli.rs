@@ -665,6 +665,50 @@ fn draft_mode_reports_its_pull_and_refuses_bad_flags() {
 }
 
 #[test]
+fn principal_curvature_modes_and_line_overlays_report_and_refuse_bad_flags() {
+    let d = tmp("k1-lines");
+    let out = d.join("k.png");
+    let o = hitex(&[
+        "nurbs",
+        "render",
+        "teapot",
+        "--mode",
+        "k2",
+        "--isolines",
+        "3",
+        "--sections",
+        "-z,0.25",
+        "--size",
+        "96x64",
+        "--backend",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(text.contains("max(|κ1|, |κ2|)") && text.contains("towards the viewer"), "{text}");
+    assert!(text.contains("isoparametric lines: 3 per patch"), "{text}");
+    assert!(text.contains("sections (magenta): the planes (0.00, 0.00, -1.00) · P = k × 0.250"), "{text}");
+    let img = image::open(&out).unwrap().to_rgba8();
+    let count = |rgb: [u8; 3]| img.pixels().filter(|p| p.0[..3] == rgb).count();
+    assert!(count(hitex_render::nurbs::ISOLINE_RGB) > 50, "isoline pixels");
+    assert!(count(hitex_render::nurbs::SECTION_RGB) > 50, "section pixels");
+    for (flag, value, says) in [
+        ("--sections", "z,0", "spacing 0 must be finite and positive"),
+        ("--sections", "z", "is not AXIS,SPACING"),
+        ("--sections", "up,1", "is not an axis"),
+        ("--sections", "1,0,0,nan", "spacing NaN must be finite and positive"),
+        ("--isolines", "0", "--isolines 0 must be in 1…1000"),
+    ] {
+        let o = hitex(&["nurbs", "render", "teapot", flag, value, "-o", out.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{flag} {value}: {err}");
+        assert!(err.contains(says), "{flag} {value}: {err}");
+    }
+}
+
+#[test]
 fn nurbs_check_measures_edges_and_gates_on_tolerances() {
     // the teapot's patches meet exactly (G0), some only with tangent planes (G1)
     let o = hitex(&["nurbs", "check", "teapot", "--json"]);

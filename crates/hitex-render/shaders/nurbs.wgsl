@@ -12,11 +12,12 @@ struct Frame {
     view_proj: mat4x4<f32>,
     camera: vec4<f32>,
     light: vec4<f32>,
-    params: vec4<u32>, // mode, isophote bands, stripes, flags (1: prepared kernels, 2: patch boundaries)
-    ranges: vec4<f32>, // curvature range lo, hi; ambient
+    params: vec4<u32>, // mode, isophote bands, stripes, flags (1: prepared kernels, 2: patch boundaries, 4: isolines, 8: sections)
+    ranges: vec4<f32>, // curvature range lo, hi; ambient; 1 / tool radius
     background: vec4<f32>,
     model: vec4<f32>, // bounding sphere: centre, radius
     pull: vec4<f32>, // draft: unit pull direction, sine of the tolerance
+    lines: vec4<f32>, // sections: unit normal / spacing; isoparametric lines per patch and direction
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -449,10 +450,15 @@ fn isophote(n: vec3<f32>, l: vec3<f32>, bands: u32) -> vec3<f32> {
     return vec3<f32>(0.10, 0.12, 0.20);
 }
 
+// principal curvatures (k1 >= k2) from (Gaussian, mean)
+fn principal(kh: vec2<f32>) -> vec2<f32> {
+    let r = sqrt(max(kh.y * kh.y - kh.x, 0.0));
+    return vec2<f32>(kh.y + r, kh.y - r);
+}
+
 // radius classes: concave tighter than the tool (1/R = inv_radius), concave, convex or flat
 fn reach_class(e: Eval, facing: vec3<f32>, n: vec3<f32>, light: vec3<f32>, inv_radius: f32) -> vec3<f32> {
-    let kh = curvatures(e, facing);
-    let k1 = kh.y + sqrt(max(kh.y * kh.y - kh.x, 0.0));
+    let k1 = principal(curvatures(e, facing)).x;
     var base = vec3<f32>(0.72, 0.75, 0.80);
     if k1 > inv_radius {
         base = vec3<f32>(0.86, 0.18, 0.15);
@@ -597,6 +603,28 @@ fn on_boundary(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> bool {
     return du < fu || dv < fv;
 }
 
+// distance of x to the nearest whole number
+fn off_whole(x: f32) -> f32 {
+    return abs(x - floor(x + 0.5));
+}
+
+// on one of n isoparametric lines per direction of the patch, within half a pixel
+fn on_isoline(pid: i32, u: f32, v: f32, fu: f32, fv: f32, n: f32) -> bool {
+    let d = domain(pid);
+    let su = (d.y - d.x) / n;
+    let sv = (d.w - d.z) / n;
+    return off_whole((u - d.x) / su) * su < 0.5 * fu || off_whole((v - d.z) / sv) * sv < 0.5 * fv;
+}
+
+// the exact point on a section plane P·a = k within half a pixel; g = (du/dx, du/dy, dv/dx, dv/dy)
+fn on_section(e: Eval, a: vec3<f32>, g: vec4<f32>) -> bool {
+    let s = dot(e.s, a);
+    let su = dot(e.su, a);
+    let sv = dot(e.sv, a);
+    let width = abs(su * g.x + sv * g.z) + abs(su * g.y + sv * g.w);
+    return off_whole(s) < 0.5 * width;
+}
+
 
 struct FsOut {
     @location(0) color: vec4<f32>,
@@ -608,8 +636,9 @@ fn fs_main(in: VsOut) -> FsOut {
     let pid = i32(round(in.patch_id));
     let mode = frame.params.x;
     // fine derivatives for the boundary overlay, taken in uniform control flow
-    let fu = abs(dpdxFine(in.u)) + abs(dpdyFine(in.u));
-    let fv = abs(dpdxFine(in.v)) + abs(dpdyFine(in.v));
+    let g = vec4<f32>(dpdxFine(in.u), dpdyFine(in.u), dpdxFine(in.v), dpdyFine(in.v));
+    let fu = abs(g.x) + abs(g.y);
+    let fv = abs(g.z) + abs(g.w);
     // past the domain or trimmed away, beyond the seam reach: discarded
     var at = reach(pid, in.u, in.v, fu, fv);
     // boundary-fan fragments (patch index marked by a quarter) are seam fragments
@@ -619,7 +648,7 @@ fn fs_main(in: VsOut) -> FsOut {
     if at == 2u {
         discard;
     }
-    let second = mode == MODE_GAUSS || mode == MODE_MEAN || mode == MODE_RADIUS;
+    let second = mode == MODE_GAUSS || mode == MODE_MEAN || mode == MODE_RADIUS || mode == MODE_K1 || mode == MODE_K2;
     // exact point and derivatives
     let e = eval_patch(pid, in.u, in.v, second);
     let vn = in.normal;
@@ -657,6 +686,11 @@ fn fs_main(in: VsOut) -> FsOut {
         c = isophote(m, light, frame.params.y);
     } else if mode == MODE_NORMAL {
         c = n * 0.5 + vec3<f32>(0.5);
+    } else if mode == MODE_K1 || mode == MODE_K2 {
+        let k = principal(curvatures(e, n));
+        var value = k.y;
+        if mode == MODE_K1 { value = k.x; }
+        c = diverging(value / frame.ranges.y);
     } else if mode == MODE_DRAFT {
         c = draft(facing, n, light, frame.pull);
     } else if mode == MODE_RADIUS {
@@ -675,6 +709,12 @@ fn fs_main(in: VsOut) -> FsOut {
         if ndl > 0.0 { spec = 0.35 * pow(max(dot(n, h), 0.0), 48.0); }
         let lin = albedo * (frame.ranges.z + ndl) + vec3<f32>(spec);
         c = vec3<f32>(linear_to_srgb(lin.x), linear_to_srgb(lin.y), linear_to_srgb(lin.z));
+    }
+    if (frame.params.w & 4u) == 4u && on_isoline(pid, in.u, in.v, fu, fv, frame.lines.w) {
+        c = ISOLINE_RGB;
+    }
+    if (frame.params.w & 8u) == 8u && on_section(e, frame.lines.xyz, g) {
+        c = SECTION_RGB;
     }
     if (frame.params.w & 2u) == 2u && on_boundary(pid, in.u, in.v, fu, fv) {
         c = vec3<f32>(20.0 / 255.0, 20.0 / 255.0, 24.0 / 255.0);

@@ -48,6 +48,11 @@ pub enum NurbsMode {
     /// Where a ball tool of a given radius cannot reach: concave with a
     /// radius of curvature below it, concave above it, convex or flat.
     Radius,
+    /// The larger principal curvature κ1 on a diverging colour ramp (signed
+    /// towards the normal that faces the viewer, as the mean curvature).
+    K1,
+    /// The smaller principal curvature κ2, same ramp and sign.
+    K2,
 }
 
 impl NurbsMode {
@@ -57,7 +62,7 @@ impl NurbsMode {
     }
 
     /// Every mode with its CLI name.
-    pub const ALL: [(&'static str, NurbsMode); 10] = [
+    pub const ALL: [(&'static str, NurbsMode); 12] = [
         ("shaded", NurbsMode::Shaded),
         ("isophote", NurbsMode::Isophote),
         ("zebra", NurbsMode::Zebra),
@@ -68,6 +73,8 @@ impl NurbsMode {
         ("normal", NurbsMode::Normal),
         ("draft", NurbsMode::Draft),
         ("radius", NurbsMode::Radius),
+        ("k1", NurbsMode::K1),
+        ("k2", NurbsMode::K2),
     ];
     /// The CLI and scene-file name of the mode.
     pub fn name(self) -> &'static str {
@@ -88,6 +95,8 @@ impl NurbsMode {
             NurbsMode::Highlight => HIGHLIGHT,
             NurbsMode::Draft => DRAFT,
             NurbsMode::Radius => RADIUS,
+            NurbsMode::K1 => K1,
+            NurbsMode::K2 => K2,
         }
     }
 }
@@ -107,15 +116,39 @@ pub mod mode_index {
     pub const HIGHLIGHT: u32 = 7;
     pub const DRAFT: u32 = 8;
     pub const RADIUS: u32 = 9;
+    pub const K1: u32 = 10;
+    pub const K2: u32 = 11;
 }
 
+/// Bits of the flags word (`params.w`) of [`NurbsFrame`].
+pub mod flag {
+    /// Prepared-degree kernels.
+    pub const PREPARED: u32 = 1;
+    /// Patch-boundary overlay.
+    pub const BOUNDARIES: u32 = 2;
+    /// Isoparametric lines overlay (`lines.w` per patch and direction).
+    pub const ISOLINES: u32 = 4;
+    /// Section curves of a plane family (`lines.xyz` = normal / spacing).
+    pub const SECTIONS: u32 = 8;
+}
+
+/// Overlay colours (sRGB bytes): isoparametric lines and section curves.
+pub const ISOLINE_RGB: [u8; 3] = [64, 70, 82];
+/// See [`ISOLINE_RGB`].
+pub const SECTION_RGB: [u8; 3] = [200, 40, 200];
+
 /// WGSL constants `MODE_<NAME>` for every display mode (the CLI name in
-/// capitals, `-` as `_`), prepended to `nurbs.wgsl`.
+/// capitals, `-` as `_`) and the overlay colours `ISOLINE_RGB`,
+/// `SECTION_RGB`, prepended to `nurbs.wgsl`.
 pub fn wgsl_mode_constants() -> String {
-    NurbsMode::ALL
+    let rgb = |c: [u8; 3]| format!("vec3<f32>({}.0 / 255.0, {}.0 / 255.0, {}.0 / 255.0)", c[0], c[1], c[2]);
+    let mut s: String = NurbsMode::ALL
         .iter()
         .map(|(name, m)| format!("const MODE_{}: u32 = {}u;\n", name.to_ascii_uppercase().replace('-', "_"), m.index()))
-        .collect()
+        .collect();
+    s += &format!("const ISOLINE_RGB: vec3<f32> = {};\n", rgb(ISOLINE_RGB));
+    s += &format!("const SECTION_RGB: vec3<f32> = {};\n", rgb(SECTION_RGB));
+    s
 }
 
 /// A tessellation vertex: coarse position, exact normal there, (u, v), patch.
@@ -148,7 +181,8 @@ pub struct NurbsFrame {
     /// Unit direction towards the light.
     pub light: [f32; 4],
     /// x: mode, y: isophote bands, z: zebra / highlight stripes, w: flags
-    /// (bit 0: prepared-degree kernels, bit 1: patch-boundary overlay).
+    /// ([`flag`]: prepared-degree kernels, patch boundaries, isoparametric
+    /// lines, sections).
     pub params: [u32; 4],
     /// x, y: curvature range for the colour ramp; z: ambient; w: 1 / the
     /// tool radius of the radius mode.
@@ -159,6 +193,10 @@ pub struct NurbsFrame {
     pub model: [f32; 4],
     /// Draft: unit pull direction xyz, w: sine of the draft tolerance.
     pub pull: [f32; 4],
+    /// Overlays: xyz the section planes' unit normal divided by their
+    /// spacing (a section wherever `P·xyz` is a whole number), w the
+    /// isoparametric lines per patch and direction.
+    pub lines: [f32; 4],
 }
 
 /// The paper's textures, as flat arrays (row-major, one row per patch).
@@ -467,9 +505,12 @@ pub struct PreparedNurbs {
     /// Tool radius of the radius mode (model units; 0: 1/50 of the model's
     /// bounding diameter).
     pub tool_radius: f32,
-    /// Curvature mapped to full colour on the ramp: [Gaussian, mean]; by default
-    /// twice the area-weighted 75th percentile of |K| and |H| over the surface.
-    pub curvature_range: [f32; 2],
+    /// Curvature mapped to full colour on the ramp: [Gaussian, mean,
+    /// principal]; by default twice the area-weighted 75th percentile of |K|
+    /// and |H| over the surface, and of max(|κ1|, |κ2|) over its curved part
+    /// (radius of curvature below 10⁴ × the model's bounding radius; none:
+    /// 1 / that radius).
+    pub curvature_range: [f32; 3],
     /// Linear background.
     pub background: Vec3,
     /// Use the straight-line kernels of the prepared degree (bicubic) for
@@ -477,6 +518,13 @@ pub struct PreparedNurbs {
     pub prepared_kernels: bool,
     /// Draw patch boundaries (one pixel wide) over the display mode.
     pub boundaries: bool,
+    /// Draw this many isoparametric lines per patch and direction (at
+    /// equal steps of each patch's parameter range, its edges included; 0:
+    /// none), one pixel wide, over the display mode.
+    pub isolines: u32,
+    /// Draw section curves of the planes `P·normal = k·spacing` (a unit
+    /// normal and a spacing in model units), one pixel wide.
+    pub sections: Option<(Vec3, f32)>,
     /// Direction towards the light; `None`: over the viewer's shoulder.
     pub light: Option<Vec3>,
     /// Bounding sphere of the tessellation: centre, radius.
@@ -651,6 +699,7 @@ impl PreparedNurbs {
         // large ones
         let mut ks = Vec::new();
         let mut hs = Vec::new();
+        let mut ps = Vec::new();
         for s in &surfaces {
             let ((u0, u1), (v0, v1)) = s.domain();
             let cell = (u1 - u0) * (v1 - v0) / 36.0;
@@ -665,6 +714,13 @@ impl PreparedNurbs {
                 if c.gaussian.is_finite() && c.mean.is_finite() && area.is_finite() {
                     ks.push((c.gaussian.abs(), area));
                     hs.push((c.mean.abs(), area));
+                    // the principal ramp is scaled by the curved part alone:
+                    // on a machined part most of the area is planes, whose
+                    // zero would set a scale of nothing
+                    let k = c.principal[0].abs().max(c.principal[1].abs());
+                    if k.is_finite() && k * radius as f64 > 1e-4 {
+                        ps.push((k, area));
+                    }
                 }
             }
         }
@@ -682,7 +738,8 @@ impl PreparedNurbs {
             }
             (2.0 * at).max(1e-12) as f32
         };
-        let curvature_range = [pick(ks), pick(hs)];
+        let principal_range = if ps.is_empty() { 1.0 / radius.max(f32::MIN_POSITIVE) } else { pick(ps) };
+        let curvature_range = [pick(ks), pick(hs), principal_range];
         Self {
             surfaces,
             vertices,
@@ -699,6 +756,8 @@ impl PreparedNurbs {
             background: Vec3::new(0.06, 0.07, 0.09),
             prepared_kernels: true,
             boundaries: false,
+            isolines: 0,
+            sections: None,
             light: None,
             bounds: (center, radius),
             tess_deviation: deviation,
@@ -822,24 +881,35 @@ impl PreparedNurbs {
             .light
             .and_then(|l| l.try_normalize())
             .unwrap_or_else(|| (-view_dir + right * 0.4 + camera.up.normalize() * 0.6).normalize());
-        let range = match self.mode {
-            NurbsMode::Gauss => self.curvature_range[0],
-            _ => self.curvature_range[1],
-        };
+        let range = self.curvature_range[self.curvature_slot()];
+        let sections = self
+            .sections
+            .and_then(|(n, spacing)| (spacing > 0.0 && spacing.is_finite()).then(|| n.normalize_or_zero() / spacing))
+            .filter(|a| a.is_finite() && *a != Vec3::ZERO);
+        let flags = if self.prepared_kernels { flag::PREPARED } else { 0 }
+            | if self.boundaries { flag::BOUNDARIES } else { 0 }
+            | if self.isolines > 0 { flag::ISOLINES } else { 0 }
+            | if sections.is_some() { flag::SECTIONS } else { 0 };
         NurbsFrame {
             view_proj: vp.to_cols_array_2d(),
             camera: camera.position.extend(1.0).to_array(),
             light: light.extend(0.0).to_array(),
-            params: [
-                self.mode.index(),
-                self.bands,
-                self.stripes,
-                self.prepared_kernels as u32 | (self.boundaries as u32) << 1,
-            ],
+            params: [self.mode.index(), self.bands, self.stripes, flags],
             ranges: [-range, range, 0.12, 1.0 / self.effective_tool_radius()],
             background: self.background.extend(1.0).to_array(),
             model: self.bounds.0.extend(self.bounds.1).to_array(),
             pull: self.pull.normalize_or(Vec3::Z).extend(self.draft_tolerance_deg.to_radians().sin()).to_array(),
+            lines: sections.unwrap_or(Vec3::ZERO).extend(self.isolines as f32).to_array(),
+        }
+    }
+
+    /// Which [`PreparedNurbs::curvature_range`] the display mode's ramp
+    /// uses: 0 Gaussian, 2 principal, 1 mean (and every other mode).
+    pub fn curvature_slot(&self) -> usize {
+        match self.mode {
+            NurbsMode::Gauss => 0,
+            NurbsMode::K1 | NurbsMode::K2 => 2,
+            _ => 1,
         }
     }
 

@@ -581,3 +581,168 @@ fn radius_classes_follow_the_exact_curvature_on_both_backends() {
         }
     }
 }
+
+/// The colour byte the programs write for a ramp value in [0, 1].
+fn byte(x: f32) -> u8 {
+    (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}
+
+fn near(px: &[u8], c: [u8; 3], tol: u8) -> bool {
+    px[..3].iter().zip(c).all(|(a, b)| a.abs_diff(b) <= tol)
+}
+
+#[test]
+fn principal_curvatures_of_a_cylinder_on_both_backends() {
+    // radius 1: κ = ∓1 across the axis and 0 along it; with the range 2 the
+    // curved direction maps to ±½ of the ramp. Seen from outside the
+    // surface bends away from the viewer (κ1 = 0, κ2 = −1), from inside
+    // towards it (κ1 = +1, κ2 = 0): every model pixel shows one of the two
+    // pairs, on both backends.
+    let ramp = |t: f32| hitex_render::cpu::nurbs::diverging(t).to_array().map(byte);
+    let (white, blue, red) = (ramp(0.0), ramp(-0.5), ramp(0.5));
+    let cpu = CpuRenderer::new();
+    let mut gpu = gpu_or_skip("principal_curvatures_of_a_cylinder_on_both_backends");
+    for inwards in [false, true] {
+        let mut p = quarter_turn(1.0, 1.0, 1.5, inwards, NurbsMode::K1);
+        p.curvature_range[2] = 2.0;
+        let e = hitex_core::texture::linear_to_srgb_u8;
+        let bg = [e(p.background.x), e(p.background.y), e(p.background.z)];
+        let mut frames = vec![];
+        for mode in [NurbsMode::K1, NurbsMode::K2] {
+            p.mode = mode;
+            let c = cpu.render_nurbs(&p, &p.camera, 96, 96).unwrap();
+            if let Some(g) = gpu.as_mut() {
+                let f = g.render_nurbs(&p, &p.camera, 96, 96).unwrap();
+                assert_images(&format!("k-{mode:?}-{inwards}-gpu"), &f, &c, GPU_VS_CPU_ALIASED);
+                frames.push(("gpu", mode, f));
+            }
+            frames.push(("cpu", mode, c));
+        }
+        for be in ["cpu", "gpu"] {
+            let get = |m: NurbsMode| frames.iter().find(|(b, mm, _)| *b == be && *mm == m).map(|f| &f.2);
+            let (Some(k1), Some(k2)) = (get(NurbsMode::K1), get(NurbsMode::K2)) else { continue };
+            let (mut outside, mut inside, mut model) = (0, 0, 0);
+            for (a, b) in k1.rgba.chunks_exact(4).zip(k2.rgba.chunks_exact(4)) {
+                if near(a, bg, 2) && near(b, bg, 2) {
+                    continue;
+                }
+                model += 1;
+                outside += (near(a, white, 2) && near(b, blue, 2)) as usize;
+                inside += (near(a, red, 2) && near(b, white, 2)) as usize;
+            }
+            assert!(model > 800, "{be} inwards {inwards}: {model} model pixels");
+            // silhouette pixels blend with the background: allow 3 %
+            assert!(
+                (outside + inside) * 100 >= model * 97,
+                "{be} inwards {inwards}: {outside} outside + {inside} inside of {model} pixels"
+            );
+        }
+    }
+}
+
+/// A flat unit square in z = 0 whose x runs as u² (a quadratic Bézier in u
+/// with x control values 0, 0, 1), y as v; seen straight from above, so
+/// that screen columns are affine in x.
+fn square_u_squared() -> (PreparedNurbs, hitex_core::scene::Camera) {
+    let mut pts = Vec::new();
+    for y in [0.0, 1.0] {
+        for x in [0.0, 0.0, 1.0] {
+            pts.push([x, y, 0.0, 1.0]);
+        }
+    }
+    let s = hitex_core::nurbs::NurbsSurface::new(
+        2,
+        1,
+        3,
+        2,
+        vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+        vec![0.0, 0.0, 1.0, 1.0],
+        pts,
+    )
+    .unwrap();
+    let range = [s.domain()];
+    let p = PreparedNurbs::new(vec![s], &range, 8);
+    let cam = hitex_core::scene::Camera {
+        position: glam::Vec3::new(0.5, 0.5, 2.0),
+        target: glam::Vec3::new(0.5, 0.5, 0.0),
+        up: glam::Vec3::Y,
+        fov_y_deg: 35.0,
+        near: 0.5,
+        far: 4.0,
+    };
+    (p, cam)
+}
+
+#[test]
+fn isoparametric_lines_and_sections_fall_where_the_exact_surface_puts_them() {
+    // 4 isolines per direction: u = ¼, ½, ¾ lie at x = u² = 0.0625, 0.25,
+    // 0.5625; sections x = k/4 at x = 0.25, 0.5, 0.75. Along the row through
+    // y = 0.4 (between the v lines) every overlay pixel must lie within a
+    // pixel of one of those x, and each of them must be drawn (a section
+    // drawn over an isoline wins, so x = 0.25 shows the section).
+    const W: u32 = 200;
+    let (mut p, cam) = square_u_squared();
+    p.isolines = 4;
+    p.sections = Some((glam::Vec3::X, 0.25));
+    let vp = cam.view_proj(1.0);
+    let column = |x: f32| {
+        let c = vp * glam::Vec4::new(x, 0.4, 0.0, 1.0);
+        (c.x / c.w * 0.5 + 0.5) * W as f32
+    };
+    let row = {
+        let c = vp * glam::Vec4::new(0.5, 0.4, 0.0, 1.0);
+        ((0.5 - c.y / c.w * 0.5) * W as f32) as usize
+    };
+    let check = |name: &str, f: &hitex_render::Frame| {
+        let line = &f.rgba[row * W as usize * 4..(row + 1) * W as usize * 4];
+        let at = |rgb: [u8; 3]| -> Vec<f32> {
+            line.chunks_exact(4).enumerate().filter(|(_, px)| px[..3] == rgb).map(|(i, _)| i as f32 + 0.5).collect()
+        };
+        let (iso, sec) = (at(hitex_render::nurbs::ISOLINE_RGB), at(hitex_render::nurbs::SECTION_RGB));
+        for (what, got, want) in [("isoline", &iso, vec![0.0625, 0.5625]), ("section", &sec, vec![0.25, 0.5, 0.75])] {
+            let cols: Vec<f32> = want.iter().map(|&x| column(x)).collect();
+            for (x, c) in want.iter().zip(&cols) {
+                assert!(
+                    got.iter().any(|g| (g - c).abs() <= 1.0),
+                    "{name}: no {what} at x = {x} (column {c}); got {got:?}"
+                );
+            }
+            for g in got.iter() {
+                // the patch's edges x = 0, 1 are isolines and section planes too
+                let edges = [column(0.0), column(1.0)];
+                assert!(
+                    cols.iter().chain(&edges).any(|c| (g - c).abs() <= 1.5),
+                    "{name}: {what} pixel at column {g}, wanted near {cols:?}"
+                );
+            }
+            // one pixel wide, two where a line falls between two pixel centres
+            assert!(got.len() <= 2 * (want.len() + 2), "{name}: {} {what} pixels", got.len());
+        }
+    };
+    let cpu = CpuRenderer::new();
+    let c = cpu.render_nurbs(&p, &cam, W, W).unwrap();
+    check("cpu", &c);
+    if let Some(mut g) = gpu_or_skip("isoparametric_lines_and_sections_fall_where_the_exact_surface_puts_them") {
+        let f = g.render_nurbs(&p, &cam, W, W).unwrap();
+        check("gpu", &f);
+        assert_images("isolines-sections-gpu", &f, &c, GPU_VS_CPU_ALIASED);
+    }
+}
+
+#[test]
+fn the_principal_ramp_is_scaled_by_the_curved_part_alone() {
+    // a unit quarter cylinder beside a plane of 16 times its area: the
+    // plane's zeros would make the area-weighted P75 zero; the curved part
+    // alone gives 2 × 1
+    let cyl = quarter_turn(1.0, 1.0, 1.5, false, NurbsMode::K1).surfaces[0].clone();
+    let pts = vec![[-4.0, -4.0, -1.0, 1.0], [4.0, -4.0, -1.0, 1.0], [-4.0, 4.0, -1.0, 1.0], [4.0, 4.0, -1.0, 1.0]];
+    let plane =
+        hitex_core::nurbs::NurbsSurface::new(1, 1, 2, 2, vec![0.0, 0.0, 1.0, 1.0], vec![0.0, 0.0, 1.0, 1.0], pts)
+            .unwrap();
+    let ranges = [cyl.domain(), plane.domain()];
+    let p = PreparedNurbs::new(vec![cyl, plane.clone()], &ranges, 6);
+    assert!((p.curvature_range[2] - 2.0).abs() < 1e-3, "{:?}", p.curvature_range);
+    // a model without curvature: 1 / its bounding radius, not a scale of nothing
+    let p = PreparedNurbs::new(vec![plane.clone()], &[plane.domain()], 6);
+    assert!((p.curvature_range[2] * p.bounds.1 - 1.0).abs() < 0.05, "{:?} r {}", p.curvature_range, p.bounds.1);
+}

@@ -103,6 +103,7 @@ fn nurbs_uniform_matches_the_shader() {
             ("background", offset_of!(NurbsFrame, background)),
             ("model", offset_of!(NurbsFrame, model)),
             ("pull", offset_of!(NurbsFrame, pull)),
+            ("lines", offset_of!(NurbsFrame, lines)),
         ],
     );
 }

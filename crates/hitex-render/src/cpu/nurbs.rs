@@ -13,7 +13,7 @@
 use super::raster::{Block, BlockShader};
 use super::simd::{self, LANES, Lanes, V3};
 use crate::nurbs::mode_index::*;
-use crate::nurbs::{NurbsFrame, NurbsVertex, PackedNurbs};
+use crate::nurbs::{ISOLINE_RGB, NurbsFrame, NurbsVertex, PackedNurbs, SECTION_RGB, flag};
 use glam::{Mat4, Vec3, Vec4};
 use hitex_core::nurbs::{basis_ders_fixed, basis_ders_paper, find_span};
 
@@ -267,9 +267,48 @@ fn near_trim(t: &PackedNurbs, patch: usize, u: f32, v: f32, fu: f32, fv: f32) ->
 
 /// fwidth of varying `j` for the four lanes of quad `quad` of a block.
 fn fwidth_quad(b: &Block<VARYINGS>, j: usize, quad: usize) -> [f32; 4] {
-    let a: [f32; 4] = std::array::from_fn(|l| b.v[j][4 * quad + l]);
-    let (dx, dy) = (super::textured::dpdx(a), super::textured::dpdy(a));
+    let (dx, dy) = grads_quad(b, j, quad);
     std::array::from_fn(|i| dx[i].abs() + dy[i].abs())
+}
+
+/// Fine screen derivatives (d/dx, d/dy) of varying `j` on a quad's lanes
+/// (WGSL `dpdxFine`, `dpdyFine`).
+fn grads_quad(b: &Block<VARYINGS>, j: usize, quad: usize) -> ([f32; 4], [f32; 4]) {
+    let a: [f32; 4] = std::array::from_fn(|l| b.v[j][4 * quad + l]);
+    (super::textured::dpdx(a), super::textured::dpdy(a))
+}
+
+/// Screen derivatives of (u, v) at a fragment: `[∂u/∂x, ∂u/∂y, ∂v/∂x, ∂v/∂y]`.
+pub type UvGrad = [f32; 4];
+
+/// The (u, v) derivatives of every lane of a quad.
+fn uv_grads_quad(b: &Block<VARYINGS>, quad: usize) -> [UvGrad; 4] {
+    let ((ux, uy), (vx, vy)) = (grads_quad(b, 3, quad), grads_quad(b, 4, quad));
+    std::array::from_fn(|l| [ux[l], uy[l], vx[l], vy[l]])
+}
+
+/// Distance of `x` to the nearest whole number (`floor(x + 0.5)`, as the shader).
+#[inline]
+fn off_whole(x: f32) -> f32 {
+    (x - (x + 0.5).floor()).abs()
+}
+
+/// Whether (u, v) lies on one of `n` isoparametric lines per direction of
+/// its patch (equal steps of the domain, edges included), within half a
+/// pixel (`fu`, `fv` = fwidth).
+fn on_isoline(t: &PackedNurbs, patch: usize, u: f32, v: f32, fu: f32, fv: f32, n: f32) -> bool {
+    let (u0, u1, v0, v1) = domain(t, patch);
+    let (su, sv) = ((u1 - u0) / n, (v1 - v0) / n);
+    off_whole((u - u0) / su) * su < 0.5 * fu || off_whole((v - v0) / sv) * sv < 0.5 * fv
+}
+
+/// Whether the exact point lies on a section plane `P·a = k` (a = unit
+/// normal / spacing) within half a pixel: the width of `P·a` on screen
+/// from the exact partials and the (u, v) derivatives.
+fn on_section(e: &Eval, a: Vec3, g: &UvGrad) -> bool {
+    let (s, su, sv) = (e.s.dot(a), e.su.dot(a), e.sv.dot(a));
+    let width = (su * g[0] + sv * g[2]).abs() + (su * g[1] + sv * g[3]).abs();
+    off_whole(s) < 0.5 * width
 }
 
 /// Unit normal `S_u × S_v`, or `fallback` where the cross product vanishes
@@ -289,6 +328,12 @@ pub fn curvatures(e: &Eval, n: Vec3) -> (f32, f32) {
         return (0.0, 0.0);
     }
     ((l * nn - m * m) / det, (ee * nn - 2.0 * ff * m + gg * l) / (2.0 * det))
+}
+
+/// Principal curvatures (κ1 ≥ κ2) from (Gaussian, mean): H ± √(H² − K).
+pub fn principal((k, h): (f32, f32)) -> (f32, f32) {
+    let r = (h * h - k).max(0.0).sqrt();
+    (h + r, h - r)
 }
 
 /// Diverging ramp: blue (−1) → white (0) → red (+1).
@@ -335,8 +380,7 @@ pub const RADIUS_COLORS: [[f32; 3]; 3] = [[0.86, 0.18, 0.15], [0.30, 0.50, 0.90]
 /// shaded by `n` (two-sided). Radii beyond 100 R count as flat, so that a
 /// cylinder's straight direction does not flicker on rounding.
 pub fn reach_class(e: &Eval, facing: Vec3, n: Vec3, light: Vec3, inv_radius: f32) -> Vec3 {
-    let (k, h) = curvatures(e, facing);
-    let k1 = h + (h * h - k).max(0.0).sqrt();
+    let (k1, _) = principal(curvatures(e, facing));
     let class = if k1 > inv_radius {
         0
     } else if k1 > 0.01 * inv_radius {
@@ -407,9 +451,10 @@ impl<'a> NurbsProgram<'a> {
         du < fu || dv < fv
     }
 
-    /// One fragment; `fu`, `fv`: fwidth of u and v.
-    fn lane(&self, v: &[f32; VARYINGS], fu: f32, fv: f32) -> ([u8; 4], f32) {
+    /// One fragment; `g`: the screen derivatives of u and v.
+    fn lane(&self, v: &[f32; VARYINGS], g: &UvGrad) -> ([u8; 4], f32) {
         let f = self.frame;
+        let (fu, fv) = (g[0].abs() + g[1].abs(), g[2].abs() + g[3].abs());
         let patch = (v[5].round().max(0.0) as usize).min(self.packed.patches.saturating_sub(1) as usize);
         let mode = f.params[0];
         // past the domain or trimmed away, beyond the seam reach: no colour, no depth (discarded)
@@ -420,7 +465,7 @@ impl<'a> NurbsProgram<'a> {
         if at == Reach::Cut {
             return ([0, 0, 0, 0], f32::NAN);
         }
-        let second = mode == GAUSS || mode == MEAN || mode == RADIUS;
+        let second = matches!(mode, GAUSS | MEAN | RADIUS | K1 | K2);
         // exact point and derivatives
         let e = eval_packed(self.packed, patch, v[3], v[4], second, f.params[3] & 1 == 1);
         let vn = Vec3::new(v[0], v[1], v[2]);
@@ -458,6 +503,10 @@ impl<'a> NurbsProgram<'a> {
                 raw(isophote(m, light, f.params[1]))
             }
             NORMAL => raw(n * 0.5 + Vec3::splat(0.5)),
+            K1 | K2 => {
+                let (k1, k2) = principal(curvatures(&e, n));
+                raw(diverging(if mode == K1 { k1 } else { k2 } / f.ranges[1]))
+            }
             DRAFT => raw(draft(facing, n, light, Vec4::from_array(f.pull))),
             RADIUS => raw(reach_class(&e, facing, n, light, f.ranges[3])),
             HIGHLIGHT => {
@@ -474,6 +523,14 @@ impl<'a> NurbsProgram<'a> {
                 [e(c.x), e(c.y), e(c.z), 255]
             }
         };
+        let flags = f.params[3];
+        let mut rgba = rgba;
+        if flags & flag::ISOLINES != 0 && on_isoline(self.packed, patch, v[3], v[4], fu, fv, f.lines[3]) {
+            rgba = [ISOLINE_RGB[0], ISOLINE_RGB[1], ISOLINE_RGB[2], 255];
+        }
+        if flags & flag::SECTIONS != 0 && on_section(&e, Vec3::new(f.lines[0], f.lines[1], f.lines[2]), g) {
+            rgba = [SECTION_RGB[0], SECTION_RGB[1], SECTION_RGB[2], 255];
+        }
         (rgba, depth)
     }
 }
@@ -492,7 +549,11 @@ impl NurbsProgram<'_> {
         let f = self.frame;
         let t = self.packed;
         let mode = f.params[0];
-        if !matches!(mode, SHADED | ISOPHOTE | NORMAL) || f.params[3] & 3 != 1 || b.live == 0 {
+        let overlays = flag::BOUNDARIES | flag::ISOLINES | flag::SECTIONS;
+        if !matches!(mode, SHADED | ISOPHOTE | NORMAL)
+            || f.params[3] & (flag::PREPARED | overlays) != flag::PREPARED
+            || b.live == 0
+        {
             return None;
         }
         // one patch for every live lane
@@ -623,6 +684,7 @@ impl NurbsProgram<'_> {
                 continue;
             }
             let (fu, fv) = (fwidth_quad(b, 3, quad), fwidth_quad(b, 4, quad));
+            let g = uv_grads_quad(b, quad);
             for l in 0..4 {
                 let lane = base + l;
                 if mask & (1 << l) == 0 {
@@ -637,7 +699,7 @@ impl NurbsProgram<'_> {
                     depth[lane] = f32::NAN;
                 } else if at == Reach::Seam || degenerate & (1 << lane) != 0 {
                     let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
-                    (rgba[lane], depth[lane]) = self.lane(&v, fu[l], fv[l]);
+                    (rgba[lane], depth[lane]) = self.lane(&v, &g[l]);
                 }
             }
         }
@@ -1067,7 +1129,7 @@ impl BlockShader<VARYINGS> for NurbsProgram<'_> {
         }
 
         // any degree, any mode: lane by lane
-        let overlay = self.frame.params[3] & 2 == 2;
+        let overlay = self.frame.params[3] & flag::BOUNDARIES != 0;
         for quad in 0..4 {
             let base = 4 * quad;
             if (b.live >> base) & 0xf == 0 {
@@ -1075,12 +1137,13 @@ impl BlockShader<VARYINGS> for NurbsProgram<'_> {
             }
             // fwidth of u and v from the quad's lanes (seam reach, boundary overlay)
             let (fu, fv) = (fwidth_quad(b, 3, quad), fwidth_quad(b, 4, quad));
+            let g = uv_grads_quad(b, quad);
             // helper lanes only feed the derivatives above: their colour is never computed
             for l in 0..4 {
                 let lane = base + l;
                 if b.live & (1 << lane) != 0 {
                     let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
-                    let (mut c, d) = self.lane(&v, fu[l], fv[l]);
+                    let (mut c, d) = self.lane(&v, &g[l]);
                     if overlay && self.on_boundary(&v, fu[l], fv[l]) {
                         c = [20, 20, 24, 255];
                     }
@@ -1114,6 +1177,43 @@ mod tests {
         let knots_u = vec![0.0, 0.0, 0.0, 0.0, 0.3, 0.55, 1.0, 1.0, 1.0, 1.0];
         let knots_v = vec![0.0, 0.0, 0.0, 0.0, 0.6, 1.0, 1.0, 1.0, 1.0];
         NurbsSurface::new(3, 3, 6, 5, knots_u, knots_v, net_6x5()).unwrap()
+    }
+
+    #[test]
+    fn principal_curvatures_match_the_f64_reference() {
+        // the f32 program's κ1 ≥ κ2 (from K and H of its own second
+        // derivatives) against the f64 evaluator's, over a rational bicubic
+        // with interior knots, on both kernels
+        let s = bicubic_6x5();
+        let packed = PackedNurbs::new(std::slice::from_ref(&s));
+        let mut worst = 0.0f64;
+        for prepared in [true, false] {
+            for j in 0..13 {
+                for i in 0..13 {
+                    let (u, v) = (0.02 + 0.96 * i as f32 / 12.0, 0.02 + 0.96 * j as f32 / 12.0);
+                    let e = eval_packed(&packed, 0, u, v, true, prepared);
+                    let (k1, k2) = principal(curvatures(&e, exact_normal(&e, Vec3::Z)));
+                    let c = s.curvature(u as f64, v as f64);
+                    let scale = c.principal[0].abs().max(c.principal[1].abs()).max(0.05);
+                    for (got, want) in [(k1, c.principal[0]), (k2, c.principal[1])] {
+                        worst = worst.max((got as f64 - want).abs() / scale);
+                    }
+                    assert!(k1 >= k2, "κ1 {k1} < κ2 {k2} at ({u}, {v})");
+                }
+            }
+        }
+        assert!(worst < 2e-3, "largest relative deviation {worst}");
+    }
+
+    #[test]
+    fn principal_of_hand_worked_cases() {
+        // sphere of radius 2: K = ¼, H = ½ → both ½; saddle z = xy at the
+        // origin: K = −1, H = 0 → ±1; cylinder of radius 4: K = 0, H = ⅛ → ¼, 0
+        assert_eq!(principal((0.25, 0.5)), (0.5, 0.5));
+        assert_eq!(principal((-1.0, 0.0)), (1.0, -1.0));
+        assert_eq!(principal((0.0, 0.125)), (0.25, 0.0));
+        // rounding that makes H² − K slightly negative gives κ1 = κ2 = H, not NaN
+        assert_eq!(principal((0.25 + 1e-7, 0.5)), (0.5, 0.5));
     }
 
     #[test]
@@ -1213,8 +1313,7 @@ mod tests {
                         continue;
                     }
                     let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
-                    let (fu, fv) = (fwidth_quad(&b, 3, lane / 4)[lane % 4], fwidth_quad(&b, 4, lane / 4)[lane % 4]);
-                    let (c, d) = prog.lane(&v, fu, fv);
+                    let (c, d) = prog.lane(&v, &uv_grads_quad(&b, lane / 4)[lane % 4]);
                     assert_eq!(rgba[lane], c, "mode {mode} block {k} lane {lane}");
                     assert_eq!(depth[lane].to_bits(), d.to_bits(), "mode {mode} block {k} lane {lane}");
                 }
