@@ -434,8 +434,8 @@ pub fn mode_legend(f: &mut hitex_render::Frame, p: &PreparedNurbs, user_range: b
     let (name, units, rule, range) = match p.mode {
         NurbsMode::Gauss => ("GAUSS K", "1/LENGTH²", "±2×P75|K|", p.curvature_range[0]),
         NurbsMode::Mean => ("MEAN H", "1/LENGTH", "±2×P75|H|", p.curvature_range[1]),
-        NurbsMode::K1 => ("MAX K1", "1/LENGTH", "±2×P75 CURVED", p.curvature_range[2]),
-        NurbsMode::K2 => ("MIN K2", "1/LENGTH", "±2×P75 CURVED", p.curvature_range[2]),
+        NurbsMode::K1 => ("MAX K1", "1/LENGTH", "±2×P75|K|", p.curvature_range[2]),
+        NurbsMode::K2 => ("MIN K2", "1/LENGTH", "±2×P75|K|", p.curvature_range[2]),
         NurbsMode::Radius => {
             let q = |c: [f32; 3]| c.map(|x| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
             let k = hitex_render::cpu::nurbs::RADIUS_COLORS;

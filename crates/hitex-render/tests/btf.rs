@@ -99,6 +99,34 @@ fn bc1_stays_close_to_the_raw_codebook() {
 }
 
 #[test]
+fn gl_refuses_bc1_3d_codebooks_it_would_draw_black() {
+    // Mesa's GL driver reports BC 3-D textures and samples them as black:
+    // the GL renderer refuses layout (b) + BC1 with a message that says
+    // why, and still renders (b) raw and the 2-D layouts with BC1
+    let require = std::env::var("HITEX_REQUIRE_GL").is_ok_and(|v| v == "1");
+    let mut gl = match hitex_render::GpuRenderer::with_backends(wgpu::Backends::GL) {
+        Ok(g) => g,
+        Err(e) if !require => {
+            eprintln!("SKIPPED gl_refuses_bc1_3d_codebooks_it_would_draw_black: no GL adapter ({e})");
+            return;
+        }
+        Err(e) => panic!("HITEX_REQUIRE_GL=1 but no GL adapter: {e}"),
+    };
+    let b = Layout::ALL.into_iter().find(|l| l.is_3d()).unwrap();
+    let err = gl.render_btf(&prepared(b, true), &camera(), LIGHT, W, H).unwrap_err().to_string();
+    assert!(err.contains("BC1 3-D") && err.contains("gl backend"), "{err}");
+    let raw = prepared(b, false);
+    let g = gl.render_btf(&raw, &camera(), LIGHT, W, H).unwrap();
+    assert_images("btf-gl-b-raw", &g, &cpu(&raw), GPU_VS_CPU);
+    let flat = Layout::ALL.into_iter().find(|l| !l.is_3d()).unwrap();
+    let p = prepared(flat, true);
+    let g = gl.render_btf(&p, &camera(), LIGHT, W, H).unwrap();
+    assert_images("btf-gl-2d-bc1", &g, &cpu(&p), GPU_VS_CPU);
+    assert!(!hitex_render::gpu::bc1_3d_trusted(wgpu::Backend::Gl));
+    assert!(hitex_render::gpu::bc1_3d_trusted(wgpu::Backend::Vulkan));
+}
+
+#[test]
 fn gpu_matches_cpu_for_every_layout() {
     let Some(mut gpu) = gpu_or_skip("gpu_matches_cpu_for_every_layout") else { return };
     for layout in Layout::ALL {

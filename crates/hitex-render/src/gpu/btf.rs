@@ -130,10 +130,22 @@ impl BtfGpu {
     }
 }
 
+/// Whether an adapter of `backend` samples BC1 codebooks of the 3-D
+/// layouts correctly. Mesa's GL driver (llvmpipe through OpenGL) reports
+/// BC-compressed 3-D textures but samples them as black (layout (b) + BC1:
+/// 18 dB against the CPU, the 2-D layouts with BC1 and (b) raw are right);
+/// the same driver through Vulkan (lavapipe) samples them right. No GL
+/// driver is trusted with them: wgpu's GL backend cannot tell which one it
+/// runs on before the first draw.
+pub fn bc1_3d_trusted(backend: wgpu::Backend) -> bool {
+    backend != wgpu::Backend::Gl
+}
+
 fn codebook_texture(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     scene: &PreparedBtf,
+    backend: wgpu::Backend,
 ) -> Result<wgpu::Texture, GpuError> {
     let cb = &scene.codebook;
     let d3 = cb.layout.is_3d();
@@ -160,6 +172,13 @@ fn codebook_texture(
                 return Err(GpuError::Render(format!(
                     "the adapter cannot sample BC1 {} textures",
                     if d3 { "3-D" } else { "2-D" }
+                )));
+            }
+            if d3 && !bc1_3d_trusted(backend) {
+                return Err(GpuError::Render(format!(
+                    "layout {} with BC1 needs a BC1 3-D texture, which the {backend} backend samples wrongly \
+                     (black on Mesa); use a Vulkan adapter, the CPU backend, a 2-D layout or no BC1",
+                    cb.layout.label()
                 )));
             }
             (wgpu::TextureFormat::Bc1RgbaUnormSrgb, blocks, cb.width / 4 * 8, cb.height / 4)
@@ -236,7 +255,7 @@ impl GpuRenderer {
         if bg.uploaded.as_ref().is_none_or(|u| u.id != scene.id()) {
             let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
             let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-            let codebook = codebook_texture(device, queue, scene)?;
+            let codebook = codebook_texture(device, queue, scene, self.ctx.info.backend)?;
             // the index map, with its coarser MIP levels (if any) stacked in a
             // column to its right: one atlas read at texture level 0 (btf.wgsl's
             // index_level_rect places the levels the same way)

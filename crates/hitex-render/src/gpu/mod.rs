@@ -7,7 +7,7 @@ mod nurbs;
 mod terrain;
 
 /// The shaders' sources (a BTF layout's: [`layout_source`]).
-pub use btf::{BTF_WGSL, layout_source};
+pub use btf::{BTF_WGSL, bc1_3d_trusted, layout_source};
 pub use nurbs::{NURBS_WGSL, nurbs_source};
 pub use terrain::TERRAIN_WGSL;
 
