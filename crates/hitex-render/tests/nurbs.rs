@@ -447,6 +447,23 @@ fn the_conservative_early_depth_changes_no_pixel() {
     }
 }
 
+/// One Bézier patch, quadratic in u and linear in v, on 3×2 homogeneous
+/// control points (u fastest), tessellated `density`² times.
+fn quadratic_by_linear(pts: Vec<[f64; 4]>, density: u32) -> PreparedNurbs {
+    let s = hitex_core::nurbs::NurbsSurface::new(
+        2,
+        1,
+        3,
+        2,
+        vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+        vec![0.0, 0.0, 1.0, 1.0],
+        pts,
+    )
+    .unwrap();
+    let range = [s.domain()];
+    PreparedNurbs::new(vec![s], &range, density)
+}
+
 /// A quarter of a surface of revolution about +Z: radius `r0` at z = 0,
 /// `r1` at z = `height`; the parametric normal Su × Sv points outwards, or,
 /// with u reversed, inwards. As a single prepared patch in `mode`.
@@ -460,18 +477,7 @@ fn quarter_turn(r0: f64, r1: f64, height: f64, inwards: bool, mode: NurbsMode) -
         }
         pts.extend(row);
     }
-    let s = hitex_core::nurbs::NurbsSurface::new(
-        2,
-        1,
-        3,
-        2,
-        vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
-        vec![0.0, 0.0, 1.0, 1.0],
-        pts,
-    )
-    .unwrap();
-    let range = [s.domain()];
-    let mut p = PreparedNurbs::new(vec![s], &range, 6);
+    let mut p = quadratic_by_linear(pts, 6);
     p.mode = mode;
     p
 }
@@ -650,18 +656,7 @@ fn square_u_squared() -> (PreparedNurbs, hitex_core::scene::Camera) {
             pts.push([x, y, 0.0, 1.0]);
         }
     }
-    let s = hitex_core::nurbs::NurbsSurface::new(
-        2,
-        1,
-        3,
-        2,
-        vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
-        vec![0.0, 0.0, 1.0, 1.0],
-        pts,
-    )
-    .unwrap();
-    let range = [s.domain()];
-    let p = PreparedNurbs::new(vec![s], &range, 8);
+    let p = quadratic_by_linear(pts, 8);
     let cam = hitex_core::scene::Camera {
         position: glam::Vec3::new(0.5, 0.5, 2.0),
         target: glam::Vec3::new(0.5, 0.5, 0.0),
