@@ -151,12 +151,13 @@ pub fn linear_to_srgb(l: f32) -> f32 {
 }
 
 /// Linear light to an 8-bit sRGB code: `round(255 · linear_to_srgb(l))`,
-/// computed without `powf`: a 4096-entry guess, then one step up or down
-/// against the exact decision thresholds, so the result is the correctly
-/// rounded code. One step is enough: the curve rises at most 0.8 codes
-/// across a guess cell (its steepest part, 12.92·255/4095), and rounding the
-/// index can only land in the neighbouring cell; a test checks every
-/// threshold and cell edge. No loop and no branch, so lane code vectorises it.
+/// computed without `powf`: the value's cell among 4096 equal cells of
+/// [0, 1] holds the code at the cell's low edge and the one decision
+/// threshold inside the cell (if any), so the code is the cell's plus one
+/// comparison: the correctly rounded code. One threshold per cell at most:
+/// the curve rises at most 0.8 codes across a cell (its steepest part,
+/// 12.92·255/4095); a test checks every threshold and cell edge. Two
+/// independent table reads, no loop and no branch, so lane code vectorises it.
 #[inline]
 pub fn linear_to_srgb_u8(l: f32) -> u8 {
     SRGB_ENCODE.encode(l)
@@ -166,23 +167,32 @@ pub fn linear_to_srgb_u8(l: f32) -> u8 {
 /// ([`srgb_encoder`]) and call [`SrgbEncoder::encode`] per lane, so that the
 /// loop holds no lazy-initialisation check and no bounds check.
 pub struct SrgbEncoder {
-    /// `threshold[c]`: smallest linear value that encodes to code `c` or more.
+    /// `threshold[c]`: smallest linear value that encodes to code `c` or
+    /// more (the tables' source, kept for the tests).
+    #[cfg(test)]
     threshold: [f32; 256],
-    guess: [u8; ENCODE_GUESSES],
+    /// `base[i]`: the code of the smallest value in cell `i`.
+    base: [u8; ENCODE_CELLS],
+    /// `step[i]`: the threshold of code `base[i] + 1` where it lies in cell
+    /// `i`, else +∞.
+    step: [f32; ENCODE_CELLS],
 }
 
 impl SrgbEncoder {
+    /// The cell of a value in [0, 1].
+    #[inline(always)]
+    fn cell(l: f32) -> usize {
+        ((l * (ENCODE_CELLS - 1) as f32) as usize).min(ENCODE_CELLS - 1)
+    }
+
     /// [`linear_to_srgb_u8`].
     #[inline(always)]
     pub fn encode(&self, l: f32) -> u8 {
         // NaN → 0 (max returns the other operand), then [0, 1]
         #[allow(clippy::manual_clamp)] // clamp would keep NaN
         let l = l.max(0.0).min(1.0);
-        let g = self.guess[((l * (ENCODE_GUESSES - 1) as f32) as usize).min(ENCODE_GUESSES - 1)] as usize;
-        let up = (g < 255 && l >= self.threshold[(g + 1).min(255)]) as usize;
-        let c = (g + up).min(255);
-        let down = (c > 0 && l < self.threshold[c]) as usize;
-        (c - down) as u8
+        let i = Self::cell(l);
+        self.base[i] + (l >= self.step[i]) as u8
     }
 }
 
@@ -196,7 +206,7 @@ pub fn linear_to_srgb_u8_exact(l: f32) -> u8 {
     (linear_to_srgb(l) * 255.0 + 0.5) as u8
 }
 
-const ENCODE_GUESSES: usize = 4096;
+const ENCODE_CELLS: usize = 4096;
 
 static SRGB_ENCODE: LazyLock<SrgbEncoder> = LazyLock::new(|| {
     let mut threshold = [0.0f32; 256];
@@ -209,11 +219,35 @@ static SRGB_ENCODE: LazyLock<SrgbEncoder> = LazyLock::new(|| {
         }
         *th = hi;
     }
-    let mut guess = [0u8; ENCODE_GUESSES];
-    for (i, g) in guess.iter_mut().enumerate() {
-        *g = linear_to_srgb_u8_exact(i as f32 / (ENCODE_GUESSES - 1) as f32);
+    // the smallest value of each cell: a bisection over the bit patterns of
+    // [0, 1], on which the cell index is monotone
+    let low_edge = |i: usize| -> f32 {
+        let (mut lo, mut hi) = (0u32, 1.0f32.to_bits());
+        while lo < hi {
+            let mid = lo + (hi - lo) / 2;
+            if SrgbEncoder::cell(f32::from_bits(mid)) >= i { hi = mid } else { lo = mid + 1 }
+        }
+        f32::from_bits(lo)
+    };
+    let code = |l: f32| threshold[1..].iter().filter(|&&t| l >= t).count();
+    let mut base = [0u8; ENCODE_CELLS];
+    let mut step = [f32::INFINITY; ENCODE_CELLS];
+    let mut next = low_edge(0);
+    for i in 0..ENCODE_CELLS {
+        let (lo, hi) = (next, if i + 1 < ENCODE_CELLS { low_edge(i + 1) } else { f32::INFINITY });
+        let c = code(lo);
+        base[i] = c as u8;
+        if c < 255 && threshold[c + 1] < hi {
+            step[i] = threshold[c + 1];
+        }
+        next = hi;
     }
-    SrgbEncoder { threshold, guess }
+    SrgbEncoder {
+        #[cfg(test)]
+        threshold,
+        base,
+        step,
+    }
 });
 
 static SRGB_LUT: LazyLock<[f32; 256]> = LazyLock::new(|| {
@@ -269,33 +303,31 @@ mod tests {
         assert_eq!(linear_to_srgb_u8(7.0), 255);
     }
 
-    /// The one-step encoder equals a full search from the guess at every
-    /// decision threshold and guess-cell edge (±4 ulps) and on a dense sweep.
+    /// The cell encoder equals a full count of the thresholds at every
+    /// decision threshold and cell edge (±4 ulps) and on a dense sweep, and
+    /// no cell holds two thresholds.
     #[test]
-    fn one_step_from_the_guess_is_enough() {
-        let search = |l: f32| -> u8 {
-            let t = &*SRGB_ENCODE;
+    fn one_threshold_per_cell_is_enough() {
+        let t = &*SRGB_ENCODE;
+        let count = |l: f32| -> u8 {
             let l = if l.is_nan() { 0.0 } else { l.clamp(0.0, 1.0) };
-            let mut c = t.guess[(l * (ENCODE_GUESSES - 1) as f32) as usize] as usize;
-            while c < 255 && l >= t.threshold[c + 1] {
-                c += 1;
-            }
-            while c > 0 && l < t.threshold[c] {
-                c -= 1;
-            }
-            c as u8
+            t.threshold[1..].iter().filter(|&&th| l >= th).count() as u8
         };
+        for c in 1..255 {
+            assert_ne!(SrgbEncoder::cell(t.threshold[c]), SrgbEncoder::cell(t.threshold[c + 1]), "code {c}");
+        }
         let near = |x: f32| (-4i32..=4).map(move |k| f32::from_bits((x.to_bits() as i32 + k).max(0) as u32));
         let mut points: Vec<f32> = Vec::new();
-        for th in SRGB_ENCODE.threshold {
+        for th in t.threshold {
             points.extend(near(th));
         }
-        for i in 0..ENCODE_GUESSES {
-            points.extend(near(i as f32 / (ENCODE_GUESSES - 1) as f32));
+        for i in 0..ENCODE_CELLS {
+            points.extend(near(i as f32 / (ENCODE_CELLS - 1) as f32));
         }
         points.extend((0..=2_000_000).map(|i| i as f32 / 2_000_000.0));
+        points.extend([f32::NAN, -1.0, 2.0, f32::INFINITY, f32::NEG_INFINITY, 1.0]);
         for l in points {
-            assert_eq!(linear_to_srgb_u8(l), search(l), "at {l:e}");
+            assert_eq!(linear_to_srgb_u8(l), count(l), "at {l:e}");
         }
     }
 }
