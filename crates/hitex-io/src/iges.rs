@@ -319,7 +319,7 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
             128 => {}
             144 => {
                 let f: Vec<&str> = fields[1..].iter().map(String::as_str).collect();
-                match trimmed_surface(&f, &parsed, &surface_of, &model.surfaces) {
+                match trimmed_surface(&f, &parsed, &transforms, &surface_of, &model.surfaces) {
                     Ok((base, loops)) => {
                         consumed.insert(base);
                         let mut s = model.surfaces[base].clone();
@@ -336,7 +336,7 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
                     Err(m) => model.warnings.push(format!("{loc}: entity 144 not trimmed: {m}")),
                 }
             }
-            142 | 126 | 102 | 110 | 124 => {}
+            142 | 126 | 102 | 110 | 100 | 104 | 106 | 124 => {}
             other => *skipped.entry(other).or_default() += 1,
         }
     }
@@ -396,6 +396,7 @@ type Loops = Vec<Vec<[f64; 2]>>;
 fn trimmed_surface(
     f: &[&str],
     parsed: &Parsed,
+    transforms: &[i64],
     surface_of: &std::collections::HashMap<usize, usize>,
     surfaces: &[IgesSurface],
 ) -> Result<(usize, Loops), String> {
@@ -414,10 +415,10 @@ fn trimmed_surface(
         let ((u0, u1), (v0, v1)) = surfaces[base].range;
         loops.push(vec![[u0, v0], [u1, v0], [u1, v1], [u0, v1], [u0, v0]]);
     } else {
-        loops.push(curve_on_surface(entity_at(get(3)?, parsed.len())?, parsed)?);
+        loops.push(curve_on_surface(entity_at(get(3)?, parsed.len())?, parsed, transforms)?);
     }
     for i in 0..n2 {
-        loops.push(curve_on_surface(entity_at(get(4 + i)?, parsed.len())?, parsed)?);
+        loops.push(curve_on_surface(entity_at(get(4 + i)?, parsed.len())?, parsed, transforms)?);
     }
     Ok((base, loops))
 }
@@ -480,7 +481,7 @@ fn apply_124(s: &mut NurbsSurface, m: &Matrix34) {
 }
 
 /// Entity 142: CRTN, SPTR, BPTR (curve in parameter space), CPTR, PREF.
-fn curve_on_surface(k: usize, parsed: &Parsed) -> Result<Vec<[f64; 2]>, String> {
+fn curve_on_surface(k: usize, parsed: &Parsed, transforms: &[i64]) -> Result<Vec<[f64; 2]>, String> {
     let (ty, fields, _) = &parsed[k];
     if *ty != 142 {
         return Err(format!("entry {} is entity {ty}, expected a curve on a surface (142)", k + 1));
@@ -490,7 +491,7 @@ fn curve_on_surface(k: usize, parsed: &Parsed) -> Result<Vec<[f64; 2]>, String> 
         return Err("entity 142 has no parameter-space curve (BPTR = 0)".into());
     }
     let mut pts = Vec::new();
-    sample_curve(entity_at(bptr, parsed.len())?, parsed, &mut pts, 0)?;
+    sample_curve(entity_at(bptr, parsed.len())?, parsed, transforms, &mut pts, 0)?;
     if pts.len() < 3 {
         return Err("trimming loop has fewer than three points".into());
     }
@@ -501,23 +502,63 @@ fn curve_on_surface(k: usize, parsed: &Parsed) -> Result<Vec<[f64; 2]>, String> 
     Ok(pts)
 }
 
-/// Appends samples of a parameter-space curve (126, 110 or 102 of those).
-fn sample_curve(k: usize, parsed: &Parsed, out: &mut Vec<[f64; 2]>, depth: usize) -> Result<(), String> {
+/// Relative chord tolerance of sampled trim curves: no point of an arc or
+/// conic lies farther than this fraction of the curve's size from the
+/// polyline that stands for it.
+pub const TRIM_CHORD_TOLERANCE: f64 = 1e-4;
+
+/// Appends samples of a parameter-space curve (126, 110, 100, 104, 106 or
+/// 102 of those), placed by its transformation matrix (124) if it has one.
+fn sample_curve(
+    k: usize,
+    parsed: &Parsed,
+    transforms: &[i64],
+    out: &mut Vec<[f64; 2]>,
+    depth: usize,
+) -> Result<(), String> {
     if depth > 8 {
         return Err("composite curves nest too deeply".into());
     }
+    let mut own = Vec::new();
+    let z = sample_curve_here(k, parsed, transforms, &mut own, depth)?;
+    let m = transform_of(k, transforms, parsed).map_err(|e| format!("entry {}: {e}", k + 1))?;
+    for p in own {
+        let p = match &m {
+            Some(m) => [
+                m[0][0] * p[0] + m[0][1] * p[1] + m[0][2] * z + m[0][3],
+                m[1][0] * p[0] + m[1][1] * p[1] + m[1][2] * z + m[1][3],
+            ],
+            None => p,
+        };
+        if out.last() != Some(&p) {
+            out.push(p);
+        }
+    }
+    Ok(())
+}
+
+/// [`sample_curve`] before the curve's matrix: its points in its own
+/// definition space, and the plane's z (ZT) that the matrix sees.
+fn sample_curve_here(
+    k: usize,
+    parsed: &Parsed,
+    transforms: &[i64],
+    out: &mut Vec<[f64; 2]>,
+    depth: usize,
+) -> Result<f64, String> {
     let (ty, fields, _) = &parsed[k];
-    let val = |i: usize, what: &str| -> Result<f64, String> {
-        fields
-            .get(i)
-            .and_then(|s| num(s))
-            .ok_or_else(|| format!("entity {ty}: {what} (field {}) missing or not a number", i + 1))
-    };
+    let val =
+        |i: usize, what: &str| -> Result<f64, String> {
+            fields.get(i).and_then(|s| num(s)).filter(|x| x.is_finite()).ok_or_else(|| {
+                format!("entity {ty} (entry {}): {what} (field {}) missing or not a number", k + 1, i + 1)
+            })
+        };
     let mut push = |p: [f64; 2]| {
         if out.last() != Some(&p) {
             out.push(p);
         }
     };
+    let mut z = 0.0;
     match *ty {
         110 => {
             push([val(1, "X1")?, val(2, "Y1")?]);
@@ -530,7 +571,11 @@ fn sample_curve(k: usize, parsed: &Parsed, out: &mut Vec<[f64; 2]>, depth: usize
             }
             for i in 0..n {
                 let member = entity_at(fields.get(2 + i).ok_or("composite curve ends early")?, parsed.len())?;
-                sample_curve(member, parsed, out, depth + 1)?;
+                let mut part = Vec::new();
+                sample_curve(member, parsed, transforms, &mut part, depth + 1)?;
+                for p in part {
+                    push(p);
+                }
             }
         }
         126 => {
@@ -566,11 +611,227 @@ fn sample_curve(k: usize, parsed: &Parsed, out: &mut Vec<[f64; 2]>, depth: usize
                 push(p);
             }
         }
+        100 => {
+            // circular arc: ZT, centre, start, end; counterclockwise, a full
+            // circle where start and end coincide
+            z = val(1, "ZT")?;
+            let c = [val(2, "X1")?, val(3, "Y1")?];
+            let a = [val(4, "X2")?, val(5, "Y2")?];
+            let b = [val(6, "X3")?, val(7, "Y3")?];
+            let r = (a[0] - c[0]).hypot(a[1] - c[1]);
+            if r <= 0.0 {
+                return Err(format!("entity 100 (entry {}): the arc's start is its centre", k + 1));
+            }
+            let t0 = (a[1] - c[1]).atan2(a[0] - c[0]);
+            let mut t1 = (b[1] - c[1]).atan2(b[0] - c[0]);
+            while t1 <= t0 {
+                t1 += std::f64::consts::TAU;
+            }
+            let f = |t: f64| [c[0] + r * t.cos(), c[1] + r * t.sin()];
+            for p in sample_adaptive(&f, t0, t1, TRIM_CHORD_TOLERANCE * r) {
+                push(p);
+            }
+            // the end point as written (the radius to it may differ by rounding)
+            if a != b {
+                push(b);
+            }
+        }
+        104 => {
+            // conic arc in standard position: A x² + B xy + C y² + D x + E y + F = 0
+            let q: Vec<f64> = (1..=6).map(|i| val(i, "coefficient")).collect::<Result<_, _>>()?;
+            z = val(7, "ZT")?;
+            let a = [val(8, "X1")?, val(9, "Y1")?];
+            let b = [val(10, "X2")?, val(11, "Y2")?];
+            let f = conic(&q).map_err(|m| format!("entity 104 (entry {}): {m}", k + 1))?.on_branch_of(a);
+            let (t0, t1) = (f.param(a), f.param(b));
+            let t1 = match f {
+                // counterclockwise; a full ellipse where start and end coincide
+                Conic::Ellipse { .. } => {
+                    let mut t1 = t1;
+                    while t1 <= t0 {
+                        t1 += std::f64::consts::TAU;
+                    }
+                    t1
+                }
+                _ => t1,
+            };
+            let size = f.size().max((b[0] - a[0]).hypot(b[1] - a[1]));
+            push(a);
+            for p in sample_adaptive(&|t| f.point(t), t0, t1, TRIM_CHORD_TOLERANCE * size) {
+                push(p);
+            }
+            if a != b {
+                push(b);
+            }
+        }
+        106 => {
+            // copious data: IP = 1 (x, y pairs at ZT), 2 (x, y, z), 3 (x, y, z, i, j, k)
+            let ip = val(1, "IP")?;
+            let n = val(2, "N")?;
+            let stride = match ip as i64 {
+                1 => 2,
+                2 => 3,
+                3 => 6,
+                _ => return Err(format!("entity 106 (entry {}): IP = {ip} (1, 2 or 3 expected)", k + 1)),
+            };
+            let first = if stride == 2 { 4 } else { 3 };
+            let end = (n as usize).checked_mul(stride).and_then(|x| x.checked_add(first));
+            if n < 0.0 || n.fract() != 0.0 || end.is_none_or(|e| e > fields.len()) {
+                return Err(format!(
+                    "entity 106 (entry {}): declares {} points but has {} fields",
+                    k + 1,
+                    fields[2],
+                    fields.len()
+                ));
+            }
+            if stride == 2 {
+                z = val(3, "ZT")?;
+            }
+            for i in 0..n as usize {
+                push([val(first + stride * i, "x")?, val(first + stride * i + 1, "y")?]);
+            }
+        }
         other => {
-            return Err(format!("entry {} is entity {other}, not a curve hitex can trim with (126, 110, 102)", k + 1));
+            return Err(format!(
+                "entry {} is entity {other}, not a curve hitex can trim with (126, 110, 100, 104, 106, 102)",
+                k + 1
+            ));
         }
     }
-    Ok(())
+    Ok(z)
+}
+
+/// A conic of entity 104 in standard position, by kind.
+#[derive(Clone, Copy, Debug)]
+enum Conic {
+    /// x²/a² + y²/b² = 1: (a cos t, b sin t)
+    Ellipse { a: f64, b: f64 },
+    /// x²/a² − y²/b² = ±1 (`along_x`: opening along x): (±a cosh t, b sinh t)
+    /// on the branch `sign`, or (a sinh t, ±b cosh t)
+    Hyperbola { a: f64, b: f64, along_x: bool, sign: f64 },
+    /// y = k x² (`along_x` false: x = k y²), parameter x (or y)
+    Parabola { k: f64, along_x: bool },
+}
+
+impl Conic {
+    fn point(&self, t: f64) -> [f64; 2] {
+        match *self {
+            Conic::Ellipse { a, b } => [a * t.cos(), b * t.sin()],
+            Conic::Hyperbola { a, b, along_x: true, sign } => [sign * a * t.cosh(), b * t.sinh()],
+            Conic::Hyperbola { a, b, along_x: false, sign } => [a * t.sinh(), sign * b * t.cosh()],
+            Conic::Parabola { k, along_x: true } => [t, k * t * t],
+            Conic::Parabola { k, along_x: false } => [k * t * t, t],
+        }
+    }
+
+    /// A hyperbola's branch through `p` (other conics are unchanged).
+    fn on_branch_of(self, p: [f64; 2]) -> Conic {
+        match self {
+            Conic::Hyperbola { a, b, along_x, .. } => {
+                let s = if along_x { p[0] } else { p[1] };
+                Conic::Hyperbola { a, b, along_x, sign: if s < 0.0 { -1.0 } else { 1.0 } }
+            }
+            other => other,
+        }
+    }
+
+    /// The parameter of a point on the conic.
+    fn param(&self, p: [f64; 2]) -> f64 {
+        match *self {
+            Conic::Ellipse { a, b } => (p[1] / b).atan2(p[0] / a),
+            Conic::Hyperbola { b, along_x: true, .. } => (p[1] / b).asinh(),
+            Conic::Hyperbola { a, along_x: false, .. } => (p[0] / a).asinh(),
+            Conic::Parabola { along_x: true, .. } => p[0],
+            Conic::Parabola { along_x: false, .. } => p[1],
+        }
+    }
+
+    /// A length of the curve's scale, for the chord tolerance.
+    fn size(&self) -> f64 {
+        match *self {
+            Conic::Ellipse { a, b } | Conic::Hyperbola { a, b, .. } => a.max(b),
+            Conic::Parabola { k, .. } => 1.0 / k.abs(),
+        }
+    }
+}
+
+/// The conic of 104's coefficients (A, B, C, D, E, F), which the standard
+/// puts in standard position: centre (or vertex) at the origin, axes along
+/// x and y; anything else is refused with what it is.
+fn conic(q: &[f64]) -> Result<Conic, String> {
+    let (a, b, c, d, e, f) = (q[0], q[1], q[2], q[3], q[4], q[5]);
+    let scale = q.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let zero = |x: f64| x.abs() <= 1e-12 * scale;
+    if scale == 0.0 {
+        return Err("every coefficient is zero".into());
+    }
+    if !zero(b) {
+        return Err(format!("the conic is rotated (B = {b}); the standard asks for standard position"));
+    }
+    if zero(a) || zero(c) {
+        // parabola: A x² + E y = 0 or C y² + D x = 0
+        return if !zero(a) && zero(c) && zero(d) && zero(f) && !zero(e) {
+            Ok(Conic::Parabola { k: -a / e, along_x: true })
+        } else if zero(a) && !zero(c) && zero(e) && zero(f) && !zero(d) {
+            Ok(Conic::Parabola { k: -c / d, along_x: false })
+        } else {
+            Err("a degenerate conic or a parabola off standard position".into())
+        };
+    }
+    if !zero(d) || !zero(e) {
+        return Err(format!(
+            "the conic's centre is off the origin (D = {d}, E = {e}); the standard asks for standard position"
+        ));
+    }
+    if zero(f) {
+        return Err("a degenerate conic (F = 0: a point or two lines)".into());
+    }
+    let (ra, rc) = (-f / a, -f / c);
+    match (ra > 0.0, rc > 0.0) {
+        (true, true) => Ok(Conic::Ellipse { a: ra.sqrt(), b: rc.sqrt() }),
+        (true, false) => Ok(Conic::Hyperbola { a: ra.sqrt(), b: (-rc).sqrt(), along_x: true, sign: 1.0 }),
+        (false, true) => Ok(Conic::Hyperbola { a: (-ra).sqrt(), b: rc.sqrt(), along_x: false, sign: 1.0 }),
+        (false, false) => Err("an imaginary ellipse (no real points)".into()),
+    }
+}
+
+/// Samples of `f` over [t0, t1] (both ends included) such that no
+/// midpoint between two samples lies farther than `tol` from their chord:
+/// eight even steps, each halved while it misses (at most 2¹² pieces a step).
+fn sample_adaptive(f: &dyn Fn(f64) -> [f64; 2], t0: f64, t1: f64, tol: f64) -> Vec<[f64; 2]> {
+    fn split(
+        f: &dyn Fn(f64) -> [f64; 2],
+        a: (f64, [f64; 2]),
+        b: (f64, [f64; 2]),
+        tol: f64,
+        depth: u32,
+        out: &mut Vec<[f64; 2]>,
+    ) {
+        let tm = 0.5 * (a.0 + b.0);
+        let m = f(tm);
+        let (dx, dy) = (b.1[0] - a.1[0], b.1[1] - a.1[1]);
+        let len = dx.hypot(dy);
+        let dev = if len > 0.0 {
+            ((m[0] - a.1[0]) * dy - (m[1] - a.1[1]) * dx).abs() / len
+        } else {
+            (m[0] - a.1[0]).hypot(m[1] - a.1[1])
+        };
+        if dev > tol && depth < 12 {
+            split(f, a, (tm, m), tol, depth + 1, out);
+            split(f, (tm, m), b, tol, depth + 1, out);
+        } else {
+            out.push(b.1);
+        }
+    }
+    let mut out = vec![f(t0)];
+    let mut prev = (t0, out[0]);
+    for i in 1..=8 {
+        let t = t0 + (t1 - t0) * i as f64 / 8.0;
+        let next = (t, f(t));
+        split(f, prev, next, tol, 0, &mut out);
+        prev = next;
+    }
+    out
 }
 
 /// Samples a rational B-spline curve in the plane (homogeneous `(wx, wy, w)`
@@ -815,6 +1076,38 @@ mod tests {
         iges_file(&[(128, BILINEAR), (126, &circle), (142, "142,0,1,3,0,1;"), (144, "144,1,0,1,0,5;")])
     }
 
+    /// A unit square with two holes: a circle (entity 100) of radius 0.15
+    /// about (0.3, 0.5), and an ellipse (entity 104) of semi-axes 0.12 and
+    /// 0.25 placed about (0.7, 0.5) by a matrix (124).
+    pub fn arc_holes() -> String {
+        iges_file_placed(&[
+            (128, BILINEAR, 0),
+            (100, "100,0.,0.3,0.5,0.45,0.5,0.45,0.5;", 0),
+            (124, "124,1.,0.,0.,0.7,0.,1.,0.,0.5,0.,0.,1.,0.;", 0),
+            (104, "104,0.0625,0.,0.0144,0.,0.,-0.0009,0.,0.12,0.,0.12,0.;", 5),
+            (142, "142,0,1,3,0,1;", 0),
+            (142, "142,0,1,7,0,1;", 0),
+            (144, "144,1,0,2,0,9,11;", 0),
+        ])
+    }
+
+    #[test]
+    fn arc_holes_fixture_is_current() {
+        // data/arc-holes.igs (HITEX_BLESS=1 rewrites it)
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/arc-holes.igs");
+        if std::env::var("HITEX_BLESS").is_ok_and(|v| v == "1") {
+            std::fs::write(&path, arc_holes()).unwrap();
+        }
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), arc_holes());
+        let m = parse_iges(&arc_holes(), "arc-holes.igs").unwrap();
+        assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+        let t = &m.surfaces[0].trim;
+        assert_eq!(t.len(), 3);
+        let pi = std::f64::consts::PI;
+        assert!((area(&t[1]) / (pi * 0.0225) - 1.0).abs() < 2.0 * TRIM_CHORD_TOLERANCE);
+        assert!((area(&t[2]) / (pi * 0.03) - 1.0).abs() < 4.0 * TRIM_CHORD_TOLERANCE);
+    }
+
     #[test]
     fn holed_square_fixture_is_current() {
         // data/holed-square.igs: a trimmed surface for tests and users (HITEX_BLESS=1 rewrites it)
@@ -866,6 +1159,117 @@ mod tests {
         let m = parse_iges(&bad, "bad.igs").unwrap();
         assert!(m.surfaces[0].trim.is_empty());
         assert!(m.warnings.iter().any(|w| w.contains("entity 144")), "{:?}", m.warnings);
+    }
+
+    /// The unit bilinear patch with one hole bounded by `curves` (entries
+    /// 2 …, the last one the 142's parameter-space curve; each with its
+    /// matrix pointer): the hole's loop, or the file's warnings.
+    fn hole(curves: &[(i64, &str, usize)]) -> Result<Vec<[f64; 2]>, Vec<String>> {
+        let last = 2 * curves.len() + 1;
+        let c142 = format!("142,0,1,{last},0,1;");
+        let c144 = format!("144,1,0,1,0,{};", last + 2);
+        let mut all = vec![(128, BILINEAR, 0)];
+        all.extend_from_slice(curves);
+        all.push((142, &c142, 0));
+        all.push((144, &c144, 0));
+        let m = parse_iges(&iges_file_placed(&all), "hole.igs").unwrap();
+        match m.surfaces[0].trim.get(1) {
+            Some(l) => Ok(l.clone()),
+            None => Err(m.warnings),
+        }
+    }
+
+    fn area(l: &[[f64; 2]]) -> f64 {
+        0.5 * l.windows(2).map(|w| w[0][0] * w[1][1] - w[1][0] * w[0][1]).sum::<f64>()
+    }
+
+    /// Largest distance of a chord's midpoint from the circle (c, r).
+    fn worst_sagitta(l: &[[f64; 2]], c: [f64; 2], r: f64) -> f64 {
+        l.windows(2)
+            .map(|w| r - (0.5 * (w[0][0] + w[1][0]) - c[0]).hypot(0.5 * (w[0][1] + w[1][1]) - c[1]))
+            .fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn circular_arcs_trim_to_the_chord_tolerance() {
+        // a full circle (start = end), radius 0.3 about (0.5, 0.5)
+        let l = hole(&[(100, "100,0.,0.5,0.5,0.8,0.5,0.8,0.5;", 0)]).unwrap();
+        for p in &l {
+            assert!(((p[0] - 0.5).hypot(p[1] - 0.5) - 0.3).abs() < 1e-12, "{p:?}");
+        }
+        let sag = worst_sagitta(&l, [0.5, 0.5], 0.3);
+        assert!(sag <= TRIM_CHORD_TOLERANCE * 0.3 * 1.0001 && sag > 0.0, "{sag}");
+        // counterclockwise, the circle's area to the chord tolerance, not thousands of points
+        let a = area(&l);
+        assert!((a / (std::f64::consts::PI * 0.09) - 1.0).abs() < 2.0 * TRIM_CHORD_TOLERANCE, "{a}");
+        assert!(l.len() < 600, "{}", l.len());
+        // a half circle of radius 1 closed by its diameter, as a composite
+        // curve that a matrix scales by 1/4 and moves to (0.5, 0.5)
+        let quarter = "124,0.25,0.,0.,0.5,0.,0.25,0.,0.5,0.,0.,1.,0.;";
+        let l = hole(&[
+            (124, quarter, 0),
+            (100, "100,0.,0.,0.,1.,0.,-1.,0.;", 0),
+            (110, "110,-1.,0.,0.,1.,0.,0.;", 0),
+            (102, "102,2,5,7;", 3),
+        ])
+        .unwrap();
+        assert!(l.iter().all(|p| p[1] >= 0.5 - 1e-12 && (p[0] - 0.5).hypot(p[1] - 0.5) <= 0.25 + 1e-12), "{l:?}");
+        let half = std::f64::consts::PI * 0.0625 / 2.0;
+        assert!((area(&l) / half - 1.0).abs() < 2.0 * TRIM_CHORD_TOLERANCE, "{}", area(&l));
+        // a degenerate arc is a warning naming the entity; the surface stays
+        let w = hole(&[(100, "100,0.,0.5,0.5,0.5,0.5,0.5,0.5;", 0)]).unwrap_err();
+        assert!(w.iter().any(|w| w.contains("entity 100 (entry 2)") && w.contains("centre")), "{w:?}");
+    }
+
+    #[test]
+    fn conic_arcs_trim_on_their_curves() {
+        // the ellipse x²/0.2² + y²/0.1² = 1, whole, moved to (0.5, 0.5)
+        let shift = "124,1.,0.,0.,0.5,0.,1.,0.,0.5,0.,0.,1.,0.;";
+        let l = hole(&[(124, shift, 0), (104, "104,25.,0.,100.,0.,0.,-1.,0.,0.2,0.,0.2,0.;", 3)]).unwrap();
+        for p in &l {
+            let (x, y) = (p[0] - 0.5, p[1] - 0.5);
+            assert!((x * x / 0.04 + y * y / 0.01 - 1.0).abs() < 1e-12, "{p:?}");
+        }
+        let e = std::f64::consts::PI * 0.2 * 0.1;
+        assert!((area(&l) / e - 1.0).abs() < 4.0 * TRIM_CHORD_TOLERANCE, "{}", area(&l));
+        // the parabola y = 2x² from x = −0.5 to 0.5, closed by the line y = 0.5: area 1/3
+        let l = hole(&[
+            (104, "104,2.,0.,0.,0.,-1.,0.,0.,-0.5,0.5,0.5,0.5;", 0),
+            (110, "110,0.5,0.5,0.,-0.5,0.5,0.;", 0),
+            (102, "102,2,3,5;", 0),
+        ])
+        .unwrap();
+        assert!(l.iter().all(|p| (p[1] - 2.0 * p[0] * p[0]).abs() < 1e-12 || (p[1] - 0.5).abs() < 1e-12), "{l:?}");
+        assert!(l.len() > 10, "sampled, not a chord: {l:?}");
+        assert!((area(&l).abs() - 1.0 / 3.0).abs() < 1e-4, "{}", area(&l));
+        // the hyperbola x² − y² = 1: its left branch from (−cosh 1, sinh 1) to (−cosh 1, −sinh 1)
+        let (c, s) = (1f64.cosh(), 1f64.sinh());
+        let rec = format!("104,1.,0.,-1.,0.,0.,-1.,0.,{},{s},{},{};", -c, -c, -s);
+        let l = hole(&[(104, &rec, 0)]).unwrap();
+        for p in &l {
+            assert!(p[0] < 0.0 && (p[0] * p[0] - p[1] * p[1] - 1.0).abs() < 1e-9, "{p:?}");
+        }
+        assert!(l.len() > 10);
+        // off standard position: a warning naming the entity and why
+        let w = hole(&[(104, "104,1.,0.5,1.,0.,0.,-1.,0.,1.,0.,1.,0.;", 0)]).unwrap_err();
+        assert!(w.iter().any(|w| w.contains("entity 104 (entry 2)") && w.contains("standard position")), "{w:?}");
+        let w = hole(&[(104, "104,1.,0.,1.,0.,0.,1.,0.,1.,0.,1.,0.;", 0)]).unwrap_err();
+        assert!(w.iter().any(|w| w.contains("imaginary")), "{w:?}");
+    }
+
+    #[test]
+    fn copious_data_trims_as_its_points() {
+        let l = hole(&[(106, "106,1,4,0.,0.1,0.1,0.9,0.1,0.9,0.9,0.1,0.9;", 0)]).unwrap();
+        assert_eq!(l, vec![[0.1, 0.1], [0.9, 0.1], [0.9, 0.9], [0.1, 0.9], [0.1, 0.1]]);
+        let l = hole(&[(106, "106,2,3,0.2,0.2,0.,0.8,0.2,0.,0.5,0.8,0.;", 0)]).unwrap();
+        assert_eq!(l.len(), 4);
+        // more points claimed than written, and an unknown IP: warnings naming the entity
+        let w = hole(&[(106, "106,1,40,0.,0.1,0.1;", 0)]).unwrap_err();
+        assert!(w.iter().any(|w| w.contains("entity 106 (entry 2)") && w.contains("40")), "{w:?}");
+        let w = hole(&[(106, "106,1,1e30,0.,0.1,0.1;", 0)]).unwrap_err();
+        assert!(w.iter().any(|w| w.contains("entity 106 (entry 2)") && w.contains("1e30")), "{w:?}");
+        let w = hole(&[(106, "106,7,1,0.,0.1,0.1;", 0)]).unwrap_err();
+        assert!(w.iter().any(|w| w.contains("IP = 7")), "{w:?}");
     }
 
     const BILINEAR: &str =
