@@ -1,5 +1,6 @@
 //! `hitex btf …`: synthesise, inspect, import, export and render BTFs.
 
+use crate::progress::Progress;
 use crate::{Backend, CliError, open_renderer, parse_size, render_frame, save};
 use clap::{Subcommand, ValueEnum};
 use glam::Vec3;
@@ -12,7 +13,6 @@ use hitex_core::texture::ToneMap;
 use hitex_core::texture::bc1::Bc1Encoder;
 use hitex_render::btf::{BtfSurface, PreparedBtf};
 use hitex_render::{Job, Renderer};
-use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -160,7 +160,7 @@ pub enum MipArg {
 
 /// The MIP pyramid of `btf` through `map`, with a progress bar.
 pub fn mip_with_progress(btf: &Btf, map: &IndexMap, quiet: bool) -> Result<BtfMip, CliError> {
-    let pb = if quiet { ProgressBar::hidden() } else { bar(0, "MIP levels") };
+    let pb = if quiet { Progress::hidden() } else { bar(0, "MIP levels") };
     let mip = hitex_core::btf::mip::build_mip(btf, map, &|done, total| {
         pb.set_length(total as u64);
         pb.set_position(done as u64);
@@ -201,15 +201,8 @@ pub enum ConventionArg {
     Utia,
 }
 
-pub(crate) fn bar(len: u64, what: &str) -> ProgressBar {
-    let pb = ProgressBar::new(len);
-    pb.set_style(
-        ProgressStyle::with_template("{prefix:>12} [{bar:30}] {pos}/{len} {msg} {elapsed}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    pb.set_prefix(what.to_string());
-    pb
+pub(crate) fn bar(len: u64, what: &str) -> Progress {
+    Progress::new(len, what, "", "{prefix:>12} [{bar:30}] {pos}/{len} {msg} {elapsed}")
 }
 
 fn grid_from(theta: Option<Vec<f32>>, phi: usize) -> Result<AngularGrid, CliError> {
@@ -224,7 +217,7 @@ fn grid_from(theta: Option<Vec<f32>>, phi: usize) -> Result<AngularGrid, CliErro
 
 /// Synthesises `material` with a progress bar.
 pub fn synth_with_progress(material: Material, opts: &SynthOptions, quiet: bool) -> Result<Btf, CliError> {
-    let pb = if quiet { ProgressBar::hidden() } else { bar(opts.grid.directions() as u64, "synth") };
+    let pb = if quiet { Progress::hidden() } else { bar(opts.grid.directions() as u64, "synth") };
     pb.set_message("view directions");
     let btf =
         synthesize(material, opts, &|done| pb.set_position(done as u64)).map_err(|e| CliError::Input(e.to_string()))?;
@@ -245,7 +238,7 @@ pub fn load_or_synth(input: &str, quiet: bool) -> Result<Btf, CliError> {
 /// Grows an index map with a progress bar.
 pub fn index_with_progress(btf: &Btf, size: u32, seed: u64, passes: u32, quiet: bool) -> Result<IndexMap, CliError> {
     let opts = SynthesisOptions { width: size, height: size, seed, passes, ..Default::default() };
-    let pb = if quiet { ProgressBar::hidden() } else { bar(passes as u64, "index") };
+    let pb = if quiet { Progress::hidden() } else { bar(passes as u64, "index") };
     pb.set_message("passes");
     let map =
         synthesize_index(btf, &opts, &|p, _| pb.set_position(p as u64)).map_err(|e| CliError::Input(e.to_string()))?;
@@ -579,6 +572,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             let g = btf.grid();
             let total = (g.directions() * g.directions()) as u64;
             let pb = bar(total, "export");
+            pb.set_message("images");
             let fmt = match format {
                 SetFormatArg::Png => hitex_io::btf_images::SetFormat::Png,
                 SetFormatArg::Exr => hitex_io::btf_images::SetFormat::Exr,

@@ -16,6 +16,7 @@ mod bench_terrain;
 mod btf_cmd;
 mod demo;
 mod nurbs_cmd;
+mod progress;
 mod terrain_cmd;
 mod terrain_store_cmd;
 #[cfg(feature = "viewer")]

@@ -11,7 +11,6 @@ use hitex_io::gst::{
 };
 use hitex_render::terrain::{FlyCamera, FlyGround, FlyMesh, FlyPages, FlySampler, FlyUniform, GenericTexture};
 use hitex_render::{Job, Renderer};
-use indicatif::{ProgressBar, ProgressStyle};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -294,26 +293,15 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
         std::fs::remove_file(&old).map_err(|e| CliError::Input(format!("{}: {e}", old.display())))?;
         println!("removed {} (an earlier build's DEM; this build has none)", old.display());
     }
-    let pb = ProgressBar::new(meta.total_tiles());
-    pb.set_style(
-        ProgressStyle::with_template("{prefix:>8} [{bar:30}] {pos}/{len} maps {elapsed} (eta {eta})")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
+    let pb = crate::progress::Progress::new(
+        meta.total_tiles(),
+        "build",
+        "maps",
+        "{prefix:>8} [{bar:30}] {pos}/{len} maps {elapsed} (eta {eta})",
     );
-    pb.set_prefix("build");
-    // where the bar cannot show (stderr not a terminal: logs, CI), a line at
-    // every tenth of the work instead, once the build has run a second
-    let lines = !std::io::IsTerminal::is_terminal(&std::io::stderr());
-    let decile = std::sync::atomic::AtomicU64::new(0);
     let report = build_store(source.as_ref(), &meta, &a.output, BuildOptions { shard: a.shard }, &|done, total| {
         pb.set_length(total);
         pb.set_position(done);
-        if lines && total > 0 && t.elapsed().as_secs_f64() > 1.0 {
-            let d = done * 10 / total;
-            if d > decile.fetch_max(d, std::sync::atomic::Ordering::Relaxed) {
-                eprintln!("hitex: build: {done}/{total} maps ({}%)", d * 10);
-            }
-        }
     })?;
     pb.finish_and_clear();
     if let Some(s) = stored {

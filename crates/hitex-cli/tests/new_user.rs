@@ -531,3 +531,35 @@ fn a_flight_past_the_imagery_says_so() {
     assert!(o.status.success());
     assert!(!error_lines(&o).iter().any(|l| l.contains("warning")), "{:?}", error_lines(&o));
 }
+
+#[test]
+fn long_work_reports_progress_where_no_bar_can_show() {
+    // every command with a bar prints lines at each tenth where stderr is
+    // not a terminal; HITEX_PROGRESS_AFTER=0 drops the one-second delay
+    let run = |args: &[&str]| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_hitex"))
+            .args(args)
+            .env("HITEX_PROGRESS_AFTER", "0")
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let d = tmp("progress-lines");
+    let h = d.join("w.hbtf");
+    let hs = h.to_str().unwrap();
+    let e = run(&["btf", "synth", "woven", "-o", hs, "--size", "8", "--theta", "0,30,60", "--phi", "4"]);
+    assert!(e.contains("hitex: synth: ") && e.contains("view directions (100%)"), "{e}");
+    let e = run(&["btf", "export", hs, "-o", d.join("set").to_str().unwrap()]);
+    // 12 view × 12 light directions, at every tenth
+    assert!(e.contains("hitex: export: 144/144 images (100%)"), "{e}");
+    assert!(e.lines().filter(|l| l.starts_with("hitex: export: ")).count() >= 5, "{e}");
+    let out = d.join("spans.png");
+    let e = run(&["terrain", "spans", "--size", "32x24", "--frames", "2", "-o", out.to_str().unwrap()]);
+    assert!(e.contains("hitex: spans: 10/10 (100%)"), "{e}");
+    // and nothing without the switch on work this short
+    let o = hitex(&["btf", "export", hs, "-o", d.join("set2").to_str().unwrap()]);
+    assert!(o.status.success());
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("hitex: export:"));
+    let _ = std::fs::remove_dir_all(&d);
+}

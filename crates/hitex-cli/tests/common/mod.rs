@@ -23,7 +23,12 @@ pub fn tmp(name: &str) -> PathBuf {
 
 /// The error lines hitex printed (the GL driver may add noise lines of its own).
 pub fn error_lines(o: &Output) -> Vec<String> {
-    String::from_utf8_lossy(&o.stderr).lines().filter(|l| l.starts_with("hitex:")).map(str::to_string).collect()
+    // progress lines ("hitex: export: 15/144 images (10%)") are not messages
+    String::from_utf8_lossy(&o.stderr)
+        .lines()
+        .filter(|l| l.starts_with("hitex:") && !l.ends_with("%)"))
+        .map(str::to_string)
+        .collect()
 }
 
 /// A small tmpfs mounted for one test, unmounted when dropped.
