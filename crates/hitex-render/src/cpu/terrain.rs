@@ -41,12 +41,20 @@ use std::sync::Mutex;
 /// Virtual levels a span may read beyond the coarsest (as the shader).
 const VIRTUAL: i32 = 24;
 
+/// One resident map: 256 × 256 RGBA8 texels, row by row.
+type Map = [[u8; 4]; (MAP * MAP) as usize];
+
+/// The map in the first 256 × 256 × 4 bytes of `t`, None if `t` is shorter.
+fn as_map(t: &[u8]) -> Option<&Map> {
+    t.get(..(MAP * MAP * 4) as usize)?.as_chunks::<4>().0.try_into().ok()
+}
+
 struct Program<'a> {
     u: FlyUniform,
     pages: &'a FlyPages,
     /// The page table resolved to texels: per slot, (level of the serving map, its texels).
-    slots: Vec<Option<(u32, &'a [u8])>>,
-    generic: Vec<&'a [u8]>,
+    slots: Vec<Option<(u32, &'a Map)>>,
+    generic: Vec<&'a Map>,
     lut: &'static [f32; 256],
     /// `a / 255` for every 8-bit alpha (a load instead of a division).
     alpha: &'static [f32; 256],
@@ -98,16 +106,18 @@ impl Program<'_> {
         (g[0].is_finite() && g[1].is_finite()).then_some(g)
     }
 
+    /// Linear RGBA of texel `n` (row × 256 + column) of a map.
     #[inline(always)]
-    fn decode(&self, t: &[u8], i: usize) -> [f32; 4] {
-        let Some(p) = t.get(i..i + 4) else { return [0.0; 4] };
+    fn decode(&self, t: &Map, n: i32) -> [f32; 4] {
+        // the mask keeps the index in the map, so the read needs no check
+        let p = t[(n & 0xFFFF) as usize];
         [self.lut[p[0] as usize], self.lut[p[1] as usize], self.lut[p[2] as usize], self.alpha[p[3] as usize]]
     }
 
     /// The map serving texel (tx, ty) of level z through the page table, and
     /// the shift from level z's texels to that map's: None where no data lies.
     #[inline(always)]
-    fn serving(&self, z: u32, tx: i32, ty: i32) -> Option<(&[u8], u32)> {
+    fn serving(&self, z: u32, tx: i32, ty: i32) -> Option<(&Map, u32)> {
         let per = self.pages.per_side as i32;
         let (mut z, mut tx, mut ty, mut steps) = (z, tx, ty, 0u32);
         loop {
@@ -133,7 +143,7 @@ impl Program<'_> {
     #[inline(always)]
     fn texel(&self, z: u32, tx: i32, ty: i32) -> [f32; 4] {
         match self.serving(z, tx, ty) {
-            Some((t, k)) => self.decode(t, ((((ty >> k) & 255) << 8 | ((tx >> k) & 255)) * 4) as usize),
+            Some((t, k)) => self.decode(t, ((ty >> k) & 255) << 8 | ((tx >> k) & 255)),
             None => [0.0; 4],
         }
     }
@@ -142,13 +152,13 @@ impl Program<'_> {
     /// read in `memo` (the walk depends on the level and the map's column
     /// and row only).
     #[inline(always)]
-    fn texel_memo<'s>(&'s self, memo: &mut ([i32; 3], Option<(&'s [u8], u32)>), z: u32, tx: i32, ty: i32) -> [f32; 4] {
+    fn texel_memo<'s>(&'s self, memo: &mut ([i32; 3], Option<(&'s Map, u32)>), z: u32, tx: i32, ty: i32) -> [f32; 4] {
         let key = [z as i32, tx >> 8, ty >> 8];
         if key != memo.0 {
             *memo = (key, self.serving(z, tx, ty));
         }
         match memo.1 {
-            Some((t, k)) => self.decode(t, ((((ty >> k) & 255) << 8 | ((tx >> k) & 255)) * 4) as usize),
+            Some((t, k)) => self.decode(t, ((ty >> k) & 255) << 8 | ((tx >> k) & 255)),
             None => [0.0; 4],
         }
     }
@@ -177,15 +187,10 @@ impl Program<'_> {
     /// The 2×2 texels from (ix, iy) of a footprint inside one map, served by
     /// `t` with shift `k` (see [`Program::serving`]).
     #[inline(always)]
-    fn footprint_in(&self, t: &[u8], k: u32, ix: i32, iy: i32) -> [[f32; 4]; 4] {
+    fn footprint_in(&self, t: &Map, k: u32, ix: i32, iy: i32) -> [[f32; 4]; 4] {
         let (x0, x1) = ((ix >> k) & 255, ((ix + 1) >> k) & 255);
         let (y0, y1) = (((iy >> k) & 255) << 8, (((iy + 1) >> k) & 255) << 8);
-        [
-            self.decode(t, ((y0 | x0) * 4) as usize),
-            self.decode(t, ((y0 | x1) * 4) as usize),
-            self.decode(t, ((y1 | x0) * 4) as usize),
-            self.decode(t, ((y1 | x1) * 4) as usize),
-        ]
+        [self.decode(t, y0 | x0), self.decode(t, y0 | x1), self.decode(t, y1 | x0), self.decode(t, y1 | x1)]
     }
 
     /// The ground points through 16 pixels of one row (x positions `px`,
@@ -236,7 +241,7 @@ impl Program<'_> {
         // neighbouring lanes almost always read one map: its page-table
         // walk (which depends on the level and the map's column and row
         // only) is kept for the next lane
-        let mut memo: ([i32; 3], Option<(&[u8], u32)>) = ([-1; 3], None);
+        let mut memo: ([i32; 3], Option<(&Map, u32)>) = ([-1; 3], None);
         for i in 0..LANES {
             if wanted >> i & 1 == 0 {
                 continue;
@@ -575,7 +580,7 @@ impl Program<'_> {
     fn generic_texel(&self, k: u32, tx: i32, ty: i32) -> [f32; 4] {
         let n = (self.u.params[3] >> k).max(1) as i32;
         let (x, y) = (tx.rem_euclid(n) as usize, ty.rem_euclid(n) as usize);
-        self.decode(self.generic[k as usize], (y * MAP as usize + x) * 4)
+        self.decode(self.generic[k as usize], (y * MAP as usize + x) as i32)
     }
 
     /// Trilinear from the generic texture at level-0 texel position `p`.
@@ -1034,18 +1039,14 @@ fn bind<'a>(
     let slots = pages
         .slots
         .iter()
-        .map(|s| {
-            s.and_then(|k: MapKey| {
-                pages.maps.get(&k).filter(|t| t.len() >= (MAP * MAP * 4) as usize).map(|t| (k.z, t.as_slice()))
-            })
-        })
+        .map(|s| s.and_then(|k: MapKey| pages.maps.get(&k).and_then(|t| as_map(t)).map(|t| (k.z, t))))
         .collect();
     let side = generic.map_or(1, |g| g.side);
-    let generic: Vec<&[u8]> = generic.map(|g| g.levels.iter().map(|l| l.as_slice()).collect()).unwrap_or_default();
+    let generic: Vec<&Map> = generic
+        .map(|g| g.levels.iter().map(|l| as_map(l)).collect::<Option<_>>())
+        .unwrap_or(Some(Vec::new()))
+        .ok_or_else(|| RenderError::Invalid("a generic texture level is not a full map".into()))?;
     let generic_levels = &generic;
-    if generic.iter().any(|l| l.len() < (MAP * MAP * 4) as usize) {
-        return Err(RenderError::Invalid("a generic texture level is not a full map".into()));
-    }
     let mut u = *u;
     u.params[2] = generic_levels.len() as u32;
     u.params[3] = side;
