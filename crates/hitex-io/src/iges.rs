@@ -1093,12 +1093,7 @@ mod tests {
 
     #[test]
     fn arc_holes_fixture_is_current() {
-        // data/arc-holes.igs (HITEX_BLESS=1 rewrites it)
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/arc-holes.igs");
-        if std::env::var("HITEX_BLESS").is_ok_and(|v| v == "1") {
-            std::fs::write(&path, arc_holes()).unwrap();
-        }
-        assert_eq!(std::fs::read_to_string(&path).unwrap(), arc_holes());
+        fixture_is_current("arc-holes.igs", &arc_holes());
         let m = parse_iges(&arc_holes(), "arc-holes.igs").unwrap();
         assert!(m.warnings.is_empty(), "{:?}", m.warnings);
         let t = &m.surfaces[0].trim;
@@ -1110,12 +1105,17 @@ mod tests {
 
     #[test]
     fn holed_square_fixture_is_current() {
-        // data/holed-square.igs: a trimmed surface for tests and users (HITEX_BLESS=1 rewrites it)
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/holed-square.igs");
+        fixture_is_current("holed-square.igs", &holed_square());
+    }
+
+    /// `data/NAME`, a trimmed surface for tests and users, holds `text`
+    /// (`HITEX_BLESS=1` rewrites it).
+    fn fixture_is_current(name: &str, text: &str) {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data").join(name);
         if std::env::var("HITEX_BLESS").is_ok_and(|v| v == "1") {
-            std::fs::write(&path, holed_square()).unwrap();
+            std::fs::write(&path, text).unwrap();
         }
-        assert_eq!(std::fs::read_to_string(&path).unwrap(), holed_square());
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), text, "{name}");
     }
 
     #[test]
