@@ -58,6 +58,36 @@ impl SimdArg {
     }
 }
 
+/// The cases a benchmark runs.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct CaseArg {
+    /// Run only these cases (comma-separated): a name as the table prints it,
+    /// or its first part (`teapot` runs every `teapot-…` case); all by default
+    #[arg(long, value_name = "NAMES", value_delimiter = ',')]
+    pub cases: Vec<String>,
+}
+
+impl CaseArg {
+    /// `all` filtered to the cases asked for: a name given whole selects that
+    /// case, otherwise every case it begins followed by a dash. An error names
+    /// every case when a name selects none.
+    pub fn select<T>(&self, all: Vec<(String, T)>) -> Result<Vec<(String, T)>, CliError> {
+        if self.cases.is_empty() {
+            return Ok(all);
+        }
+        let names: Vec<&str> = all.iter().map(|(n, _)| n.as_str()).collect();
+        let picks = |c: &str, n: &str| {
+            n == c || (!names.contains(&c) && n.strip_prefix(c).is_some_and(|rest| rest.starts_with('-')))
+        };
+        let asked: Vec<&str> = self.cases.iter().map(|c| c.trim()).collect();
+        if let Some(bad) = asked.iter().find(|c| !names.iter().any(|n| picks(c, n))) {
+            return Err(CliError::Input(format!("--cases {bad}: no such case; the cases are {}", names.join(", "))));
+        }
+        let keep: Vec<bool> = names.iter().map(|n| asked.iter().any(|c| picks(c, n))).collect();
+        Ok(all.into_iter().zip(keep).filter(|(_, k)| *k).map(|(c, _)| c).collect())
+    }
+}
+
 /// Arguments of `hitex bench texture`.
 #[derive(clap::Args, Debug)]
 pub struct TextureArgs {
@@ -78,6 +108,8 @@ pub struct TextureArgs {
     pub chart: Option<PathBuf>,
     #[command(flatten)]
     pub simd: SimdArg,
+    #[command(flatten)]
+    pub cases: CaseArg,
 }
 
 /// One measured (case, backend) pair.
@@ -419,6 +451,7 @@ pub fn texture(args: TextureArgs) -> Result<(), CliError> {
                 (n.to_string(), s)
             })
             .collect();
+    let cases = args.cases.select(cases)?;
     if !args.json {
         println!(
             "hitex bench texture: showcase scene ({} triangles), {}x{}, {} frames per case orbiting once; median of each",
@@ -453,6 +486,25 @@ mod tests {
         assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
         assert_eq!(median(&mut [4.0, 1.0, 2.0, 3.0]), 2.5);
     }
+
+    #[test]
+    fn cases_are_chosen_by_name_or_first_part() {
+        let all = || ["teapot-shaded", "teapot-shaded-generic", "spray-shaded"].map(|n| (n.to_string(), ())).to_vec();
+        let pick = |c: &[&str]| {
+            let arg = CaseArg { cases: c.iter().map(|s| s.to_string()).collect() };
+            arg.select(all()).map(|v| v.into_iter().map(|(n, _)| n).collect::<Vec<_>>())
+        };
+        assert_eq!(pick(&[]).unwrap().len(), 3);
+        assert_eq!(pick(&["teapot"]).unwrap(), ["teapot-shaded", "teapot-shaded-generic"]);
+        assert_eq!(pick(&["teapot-shaded"]).unwrap(), ["teapot-shaded"]);
+        assert_eq!(
+            pick(&["spray-shaded", "teapot-shaded-generic"]).unwrap(),
+            ["teapot-shaded-generic", "spray-shaded"]
+        );
+        // a prefix must end at a dash, and a name selecting nothing is refused with the list
+        let Err(CliError::Input(e)) = pick(&["tea"]) else { panic!("--cases tea accepted") };
+        assert!(e.contains("--cases tea") && e.contains("spray-shaded"), "{e}");
+    }
 }
 
 /// Arguments of `hitex bench nurbs`.
@@ -475,25 +527,33 @@ pub struct NurbsArgs {
     pub chart: Option<PathBuf>,
     #[command(flatten)]
     pub simd: SimdArg,
+    #[command(flatten)]
+    pub cases: CaseArg,
 }
 
 /// `hitex bench nurbs`: the paper's Table 1 models, shaded and with isophotes.
 pub fn nurbs(args: NurbsArgs) -> Result<(), CliError> {
     let levels = args.simd.levels()?;
     use hitex_render::nurbs::NurbsMode;
-    let mut prepared = Vec::new();
+    let mut wanted = Vec::new();
     for name in ["surface", "teapot", "spray"] {
-        let model = hitex_io::models::load_model(name)?;
-        let density = if name == "spray" { 4 } else { 8 };
         for (mode_name, mode, prepared_kernels) in [
             ("shaded", NurbsMode::Shaded, true),
             ("isophote", NurbsMode::Isophote, true),
             ("shaded-generic", NurbsMode::Shaded, false),
         ] {
+            wanted.push((format!("{name}-{mode_name}"), (name, mode, prepared_kernels)));
+        }
+    }
+    let mut prepared = Vec::new();
+    for (case, (name, mode, prepared_kernels)) in args.cases.select(wanted)? {
+        let model = hitex_io::models::load_model(name)?;
+        let density = if name == "spray" { 4 } else { 8 };
+        {
             let mut p = crate::nurbs_cmd::prepare(&model, density);
             p.mode = mode;
             p.prepared_kernels = prepared_kernels;
-            prepared.push((format!("{name}-{mode_name}"), p));
+            prepared.push((case, p));
         }
     }
     let fns: Vec<(String, CaseFn)> = prepared
