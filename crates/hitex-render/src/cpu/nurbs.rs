@@ -867,6 +867,27 @@ fn span_groups(ku: &[f32], kv: &[f32], nu: usize, nv: usize, u: &Lanes, v: &Lane
         (k[s] <= x && x < k[s + 1]) || (s == end_span && x >= end)
     };
     let mut groups = SpanGroups { groups: [(0, 0, 0); LANES], len: 0 };
+    if lanes == 0 {
+        return None;
+    }
+    // the common case first: every lane in the first lane's pair (one
+    // comparison per lane and knot, no search)
+    let first = lanes.trailing_zeros() as usize;
+    let (su, sv) = (find_span(nu - 1, 3, u[first], ku), find_span(nv - 1, 3, v[first], kv));
+    let (a, b, ue) = (ku[su], ku[su + 1], su == u_end);
+    let (c, d, ve) = (kv[sv], kv[sv + 1], sv == v_end);
+    let mut shared = 0u16;
+    for lane in 0..LANES {
+        let (x, y) = (u[lane], v[lane]);
+        let inu = (a <= x && x < b) | (ue & (x >= u1));
+        let inv = (c <= y && y < d) | (ve & (y >= v1));
+        shared |= ((inu & inv) as u16) << lane;
+    }
+    if shared & lanes == lanes {
+        groups.groups[0] = (su, sv, lanes);
+        groups.len = 1;
+        return Some(groups);
+    }
     for lane in (0..LANES).filter(|l| lanes & (1 << l) != 0) {
         let (x, y) = (u[lane], v[lane]);
         let found = groups.groups[..groups.len]
