@@ -3,6 +3,7 @@
 //! BTF, RGBA16F), sampled with
 //! the hardware filter by `shaders/btf.wgsl`.
 
+use super::plumbing::{PipelineScope, UploadScope, UploadedMesh, uniform_buffer, uniform_entry};
 use super::{GpuError, GpuRenderer, trusted_module};
 use crate::btf::{BtfFrame, BtfVertex, PreparedBtf};
 use crate::{Frame, RenderError};
@@ -42,26 +43,17 @@ pub fn layout_source(layout: Layout) -> String {
     out
 }
 
-struct Uploaded {
-    id: u64,
-    vertices: wgpu::Buffer,
-    indices: wgpu::Buffer,
-    group: wgpu::BindGroup,
-    count: u32,
-}
-
 pub(crate) struct BtfGpu {
     layout: Layout,
     pipeline: wgpu::RenderPipeline,
     group_layout: wgpu::BindGroupLayout,
     frame: wgpu::Buffer,
-    uploaded: Option<Uploaded>,
+    uploaded: Option<UploadedMesh>,
 }
 
 impl BtfGpu {
     fn new(device: &wgpu::Device, layout: Layout) -> Result<Self, GpuError> {
-        let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
-        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let scope = PipelineScope::open(device);
         let source = layout_source(layout);
         // SAFETY: btf.wgsl reads index texels at coordinates wrapped into the
         // index map, codebook texels inside tiles whose indices come from the
@@ -73,16 +65,7 @@ impl BtfGpu {
         let group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("btf"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT),
                 wgpu::BindGroupLayoutEntry {
                     binding: 1,
                     visibility: wgpu::ShaderStages::FRAGMENT,
@@ -115,17 +98,8 @@ impl BtfGpu {
             wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3, 4 => Float32x2];
         let stride = std::mem::size_of::<BtfVertex>() as u64;
         let pipeline = super::mesh_pipeline(device, "btf", &module, &[&group_layout], stride, &attributes);
-        let validation = pollster::block_on(scope.pop());
-        // a shader the driver's compiler rejects is an internal error, not a validation one
-        if let Some(e) = validation.or(pollster::block_on(internal.pop())) {
-            return Err(GpuError::Device(format!("BTF pipeline ({}) creation failed: {e}", layout.label())));
-        }
-        let frame = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("btf frame"),
-            size: std::mem::size_of::<BtfFrame>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        scope.close(&format!("BTF pipeline ({})", layout.label()))?;
+        let frame = uniform_buffer::<BtfFrame>(device, "btf frame");
         Ok(Self { layout, pipeline, group_layout, frame, uploaded: None })
     }
 }
@@ -253,8 +227,7 @@ impl GpuRenderer {
             return Err(RenderError::Gpu(GpuError::Render("BTF pipeline missing".into())));
         };
         if bg.uploaded.as_ref().is_none_or(|u| u.id != scene.id()) {
-            let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-            let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+            let scope = UploadScope::open(device);
             let codebook = codebook_texture(device, queue, scene, self.ctx.info.backend)?;
             // the index map, with its coarser MIP levels (if any) stacked in a
             // column to its right: one atlas read at texture level 0 (btf.wgsl's
@@ -305,24 +278,9 @@ impl GpuRenderer {
                     wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Sampler(&sampler) },
                 ],
             });
-            let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("btf vertices"),
-                contents: bytemuck::cast_slice(&scene.vertices),
-                usage: wgpu::BufferUsages::VERTEX,
-            });
-            let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("btf indices"),
-                contents: bytemuck::cast_slice(&scene.indices),
-                usage: wgpu::BufferUsages::INDEX,
-            });
-            if let Some(e) = pollster::block_on(oom.pop()) {
-                return Err(GpuError::Render(format!("BTF upload: {e}")).into());
-            }
-            if let Some(e) = pollster::block_on(scope.pop()) {
-                return Err(GpuError::Render(format!("BTF upload: {e}")).into());
-            }
-            bg.uploaded =
-                Some(Uploaded { id: scene.id(), vertices, indices, group, count: scene.indices.len() as u32 });
+            let mesh = UploadedMesh::new(device, "btf", scene.id(), &scene.vertices, &scene.indices, group);
+            scope.close("BTF upload")?;
+            bg.uploaded = Some(mesh);
         }
         queue.write_buffer(&bg.frame, 0, bytemuck::bytes_of(frame));
         Ok(())
@@ -349,11 +307,7 @@ impl GpuRenderer {
             if let Some(bg) = self.btf.as_ref()
                 && let Some(up) = bg.uploaded.as_ref()
             {
-                pass.set_pipeline(&bg.pipeline);
-                pass.set_bind_group(0, &up.group, &[]);
-                pass.set_vertex_buffer(0, up.vertices.slice(..));
-                pass.set_index_buffer(up.indices.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..up.count, 0, 0..1);
+                up.draw(pass, &bg.pipeline);
             }
         })
     }

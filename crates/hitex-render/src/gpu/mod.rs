@@ -4,6 +4,7 @@
 mod btf;
 pub mod device;
 mod nurbs;
+mod plumbing;
 mod terrain;
 
 /// The shaders' sources (a BTF layout's: [`layout_source`]).
@@ -17,6 +18,7 @@ use crate::prepare::{AtlasLayout, MAX_ATLAS_LEVELS, MaterialUniform, PreparedSce
 use crate::{Frame, RenderError, check_size};
 use hitex_core::scene::Camera;
 use hitex_core::texture::{ColorSpace, MipPyramid};
+use plumbing::{PipelineScope, UploadScope, mesh_buffers, texture_entry, uniform_buffer, uniform_entry};
 use std::sync::Arc;
 use thiserror::Error;
 use wgpu::util::DeviceExt;
@@ -123,7 +125,8 @@ pub(crate) unsafe fn trusted_module(device: &wgpu::Device, label: &str, source: 
 pub const TEXTURED_WGSL: &str =
     concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/textured.wgsl"));
 
-struct Uploaded {
+/// A textured scene on the device: its mesh and one bind group per material.
+struct UploadedScene {
     key: u64,
     vertices: wgpu::Buffer,
     indices: wgpu::Buffer,
@@ -148,7 +151,7 @@ pub struct GpuRenderer {
     material_layout: wgpu::BindGroupLayout,
     frame_buffer: wgpu::Buffer,
     frame_group: wgpu::BindGroup,
-    uploaded: Option<Uploaded>,
+    uploaded: Option<UploadedScene>,
     target: Option<TargetSet>,
     nurbs: Option<nurbs::NurbsGpu>,
     btf: Option<btf::BtfGpu>,
@@ -181,9 +184,7 @@ impl GpuRenderer {
     /// Builds the pipeline on an opened context.
     fn on(ctx: GpuContext) -> Result<Self, GpuError> {
         let device = &ctx.device;
-        // a shader the driver's compiler rejects is an internal error, not a validation one
-        let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
-        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let scope = PipelineScope::open(device);
         // Bounds checks are ours, not naga's: every texel index goes through
         // wrap_index() against the level size, every level through the clamp of
         // λ to [0, level_count − 1], and the light loop stops at min(count, 8);
@@ -192,41 +193,11 @@ impl GpuRenderer {
         let module = unsafe { trusted_module(device, "textured.wgsl", TEXTURED_WGSL) };
         let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("frame"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
+            entries: &[uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT)],
         });
         let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("material"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-            ],
+            entries: &[uniform_entry(0, wgpu::ShaderStages::FRAGMENT), texture_entry(1)],
         });
         let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2];
         let pipeline = mesh_pipeline(
@@ -237,16 +208,8 @@ impl GpuRenderer {
             std::mem::size_of::<Vertex>() as u64,
             &attributes,
         );
-        let validation = pollster::block_on(scope.pop());
-        if let Some(e) = validation.or(pollster::block_on(internal.pop())) {
-            return Err(GpuError::Device(format!("pipeline creation failed: {e}")));
-        }
-        let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("frame"),
-            size: std::mem::size_of::<crate::prepare::FrameUniform>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        scope.close("pipeline")?;
+        let frame_buffer = uniform_buffer::<crate::prepare::FrameUniform>(device, "frame");
         let frame_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("frame"),
             layout: &frame_layout,
@@ -333,16 +296,7 @@ impl GpuRenderer {
             return Ok(());
         }
         let device = &self.ctx.device;
-        let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("vertices"),
-            contents: bytemuck::cast_slice(&scene.vertices),
-            usage: wgpu::BufferUsages::VERTEX,
-        });
-        let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("indices"),
-            contents: bytemuck::cast_slice(&scene.indices),
-            usage: wgpu::BufferUsages::INDEX,
-        });
+        let (vertices, indices) = mesh_buffers(device, "scene", &scene.vertices, &scene.indices);
         let white = match hitex_core::texture::Image::filled(1, 1, ColorSpace::Srgb, [255; 4]) {
             Ok(img) => MipPyramid::single(img),
             Err(_) => unreachable!("a 1x1 image is valid"),
@@ -377,7 +331,7 @@ impl GpuRenderer {
             }));
         }
         let _ = &self.frame_layout;
-        self.uploaded = Some(Uploaded { key, vertices, indices, material_groups: groups, _textures: textures });
+        self.uploaded = Some(UploadedScene { key, vertices, indices, material_groups: groups, _textures: textures });
         Ok(())
     }
 
@@ -476,8 +430,7 @@ impl GpuRenderer {
             return Err(RenderError::Gpu(GpuError::Render("render target missing".into())));
         };
         let device = &self.ctx.device;
-        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let scope = UploadScope::open(device);
         let color_view = tg.color.create_view(&Default::default());
         let depth_view = tg.depth.create_view(&Default::default());
         let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
@@ -528,12 +481,7 @@ impl GpuRenderer {
         );
         self.ctx.queue.submit([enc.finish()]);
         self.ctx.alive()?;
-        if let Some(e) = pollster::block_on(oom.pop()) {
-            return Err(GpuError::Render(e.to_string()).into());
-        }
-        if let Some(e) = pollster::block_on(validation.pop()) {
-            return Err(GpuError::Render(e.to_string()).into());
-        }
+        scope.close("")?;
         let rgba = read_back(&self.ctx, &tg.readback, width, height, tg.padded_row)?;
         Ok(Frame { width, height, rgba })
     }

@@ -1,11 +1,11 @@
 //! The NURBS pipeline: the paper's knot and control-point textures, a coarse
 //! tessellation generating fragments, `shaders/nurbs.wgsl` evaluating each.
 
+use super::plumbing::{PipelineScope, UploadedMesh, texture_entry, uniform_buffer, uniform_entry};
 use super::{GpuError, GpuRenderer, trusted_module};
 use crate::nurbs::{NurbsFrame, NurbsVertex, PreparedNurbs};
 use crate::{Frame, RenderError};
 use hitex_core::scene::Camera;
-use wgpu::util::DeviceExt;
 
 /// The NURBS shader source.
 pub const NURBS_WGSL: &str =
@@ -17,39 +17,16 @@ pub fn nurbs_source() -> String {
     format!("{}{NURBS_WGSL}", crate::nurbs::wgsl_mode_constants())
 }
 
-struct Uploaded {
-    id: u64,
-    vertices: wgpu::Buffer,
-    indices: wgpu::Buffer,
-    group: wgpu::BindGroup,
-    count: u32,
-}
-
 pub(crate) struct NurbsGpu {
     pipeline: wgpu::RenderPipeline,
     layout: wgpu::BindGroupLayout,
     frame: wgpu::Buffer,
-    uploaded: Option<Uploaded>,
-}
-
-fn texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::FRAGMENT,
-        ty: wgpu::BindingType::Texture {
-            sample_type: wgpu::TextureSampleType::Float { filterable: false },
-            view_dimension: wgpu::TextureViewDimension::D2,
-            multisampled: false,
-        },
-        count: None,
-    }
+    uploaded: Option<UploadedMesh>,
 }
 
 impl NurbsGpu {
     fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
-        // a shader the driver's compiler rejects is an internal error, not a validation one
-        let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
-        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let scope = PipelineScope::open(device);
         // SAFETY: nurbs.wgsl indexes knots and control points through spans
         // found inside validated knot vectors, and its local arrays with
         // r ≤ p ≤ MAX_DEGREE (validated when the surfaces were built).
@@ -57,16 +34,7 @@ impl NurbsGpu {
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("nurbs"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT),
                 texture_entry(1),
                 texture_entry(2),
                 texture_entry(3),
@@ -82,16 +50,8 @@ impl NurbsGpu {
             std::mem::size_of::<NurbsVertex>() as u64,
             &attributes,
         );
-        let validation = pollster::block_on(scope.pop());
-        if let Some(e) = validation.or(pollster::block_on(internal.pop())) {
-            return Err(GpuError::Device(format!("NURBS pipeline creation failed: {e}")));
-        }
-        let frame = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("nurbs frame"),
-            size: std::mem::size_of::<NurbsFrame>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        scope.close("NURBS pipeline")?;
+        let frame = uniform_buffer::<NurbsFrame>(device, "nurbs frame");
         Ok(Self { pipeline, layout, frame, uploaded: None })
     }
 }
@@ -210,18 +170,7 @@ impl GpuRenderer {
                     wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&views[3]) },
                 ],
             });
-            let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("nurbs vertices"),
-                contents: bytemuck::cast_slice(&scene.vertices),
-                usage: wgpu::BufferUsages::VERTEX,
-            });
-            let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("nurbs indices"),
-                contents: bytemuck::cast_slice(&scene.indices),
-                usage: wgpu::BufferUsages::INDEX,
-            });
-            ng.uploaded =
-                Some(Uploaded { id: scene.id(), vertices, indices, group, count: scene.indices.len() as u32 });
+            ng.uploaded = Some(UploadedMesh::new(device, "nurbs", scene.id(), &scene.vertices, &scene.indices, group));
         }
         let frame = scene.frame(camera, width, height);
         queue.write_buffer(&ng.frame, 0, bytemuck::bytes_of(&frame));
@@ -233,11 +182,7 @@ impl GpuRenderer {
         if let Some(ng) = self.nurbs.as_ref()
             && let Some(up) = ng.uploaded.as_ref()
         {
-            pass.set_pipeline(&ng.pipeline);
-            pass.set_bind_group(0, &up.group, &[]);
-            pass.set_vertex_buffer(0, up.vertices.slice(..));
-            pass.set_index_buffer(up.indices.slice(..), wgpu::IndexFormat::Uint32);
-            pass.draw_indexed(0..up.count, 0, 0..1);
+            up.draw(pass, &ng.pipeline);
         }
     }
 

@@ -5,13 +5,13 @@
 //! nothing was drawn). The generic texture's levels are layers of the same
 //! array, kept for as long as the texture does not change.
 
+use super::plumbing::{PipelineScope, mesh_buffers, uniform_buffer};
 use super::{GpuError, GpuRenderer, trusted_module};
 use crate::terrain::{FlyGround, FlyPages, FlySampler, FlyUniform, FlyVertex, GenericTexture, MAP};
 use crate::{Frame, RenderError};
 use hitex_core::residency::MapKey;
 use std::collections::HashMap;
 use std::sync::Arc;
-use wgpu::util::DeviceExt;
 
 /// The flight shader source.
 pub const TERRAIN_WGSL: &str =
@@ -41,8 +41,7 @@ pub(crate) struct FlyGpu {
 impl FlyGpu {
     fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
         // a shader the driver's compiler rejects is an internal error, not a validation one
-        let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
-        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let scope = PipelineScope::open(device);
         // SAFETY: terrain.wgsl indexes `origins` with z < levels ≤ 32 (checked
         // before upload), `slots` with slot indices inside the window of each
         // level (the table holds levels × per_side² entries), and reads layers
@@ -153,16 +152,8 @@ impl FlyGpu {
             })
             .collect();
         let sky_pipeline = make("fly sky", "vs_sky", "fs_sky", &[], depth(false, wgpu::CompareFunction::LessEqual), 0);
-        let validation = pollster::block_on(scope.pop());
-        if let Some(e) = validation.or(pollster::block_on(internal.pop())) {
-            return Err(GpuError::Device(format!("flight pipeline creation failed: {e}")));
-        }
-        let uniform = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("fly"),
-            size: std::mem::size_of::<FlyUniform>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        scope.close("flight pipeline")?;
+        let uniform = uniform_buffer::<FlyUniform>(device, "fly");
         Ok(Self {
             pipeline,
             mesh_pipeline,
@@ -383,16 +374,7 @@ impl GpuRenderer {
             ],
         });
         let buffers = mesh.filter(|m| !m.indices.is_empty()).map(|m| {
-            let v = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("fly vertices"),
-                contents: bytemuck::cast_slice(&m.vertices),
-                usage: wgpu::BufferUsages::VERTEX,
-            });
-            let i = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("fly indices"),
-                contents: bytemuck::cast_slice(&m.indices),
-                usage: wgpu::BufferUsages::INDEX,
-            });
+            let (v, i) = mesh_buffers(device, "fly", &m.vertices, &m.indices);
             (v, i, (m.indices.len() / 3 * 3) as u32)
         });
         self.ensure_target(w, h);

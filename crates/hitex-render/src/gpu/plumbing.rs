@@ -1,0 +1,153 @@
+//! GPU set-up shared by every program: error scopes, mesh buffers, the
+//! uploaded mesh of a content and the common bind-group layout entries.
+
+use super::GpuError;
+use wgpu::util::DeviceExt;
+
+/// Error scopes around pipeline creation: a shader the driver's compiler
+/// rejects is an internal error, a bad layout a validation one.
+pub(crate) struct PipelineScope {
+    // fields drop in order: the scope pushed last first
+    validation: wgpu::ErrorScopeGuard,
+    internal: wgpu::ErrorScopeGuard,
+}
+
+impl PipelineScope {
+    /// Opens the scopes on `device`.
+    pub(crate) fn open(device: &wgpu::Device) -> Self {
+        let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        Self { validation, internal }
+    }
+
+    /// Closes the scopes: the first error as a device error naming `what`.
+    pub(crate) fn close(self, what: &str) -> Result<(), GpuError> {
+        let validation = pollster::block_on(self.validation.pop());
+        if let Some(e) = validation.or(pollster::block_on(self.internal.pop())) {
+            return Err(GpuError::Device(format!("{what} creation failed: {e}")));
+        }
+        Ok(())
+    }
+}
+
+/// Error scopes around uploads and passes: out of memory and validation.
+pub(crate) struct UploadScope {
+    // fields drop in order: the scope pushed last first
+    oom: wgpu::ErrorScopeGuard,
+    validation: wgpu::ErrorScopeGuard,
+}
+
+impl UploadScope {
+    /// Opens the scopes on `device`.
+    pub(crate) fn open(device: &wgpu::Device) -> Self {
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        Self { oom, validation }
+    }
+
+    /// Closes the scopes: the first error as a render error, prefixed by
+    /// `what` when it is not empty.
+    pub(crate) fn close(self, what: &str) -> Result<(), GpuError> {
+        let oom = pollster::block_on(self.oom.pop());
+        let validation = pollster::block_on(self.validation.pop());
+        match oom.or(validation) {
+            Some(e) if what.is_empty() => Err(GpuError::Render(e.to_string())),
+            Some(e) => Err(GpuError::Render(format!("{what}: {e}"))),
+            None => Ok(()),
+        }
+    }
+}
+
+/// A vertex and an index buffer filled from slices (`label vertices`,
+/// `label indices`).
+pub(crate) fn mesh_buffers<V: bytemuck::Pod>(
+    device: &wgpu::Device,
+    label: &str,
+    vertices: &[V],
+    indices: &[u32],
+) -> (wgpu::Buffer, wgpu::Buffer) {
+    let v = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(&format!("{label} vertices")),
+        contents: bytemuck::cast_slice(vertices),
+        usage: wgpu::BufferUsages::VERTEX,
+    });
+    let i = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(&format!("{label} indices")),
+        contents: bytemuck::cast_slice(indices),
+        usage: wgpu::BufferUsages::INDEX,
+    });
+    (v, i)
+}
+
+/// A content's mesh on the device with its one bind group, kept while the
+/// content (by its id) stays the same.
+pub(crate) struct UploadedMesh {
+    /// The content's id.
+    pub(crate) id: u64,
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    group: wgpu::BindGroup,
+    count: u32,
+}
+
+impl UploadedMesh {
+    /// Uploads `vertices` and `indices` for content `id`, drawn with `group`.
+    pub(crate) fn new<V: bytemuck::Pod>(
+        device: &wgpu::Device,
+        label: &str,
+        id: u64,
+        vertices: &[V],
+        indices: &[u32],
+        group: wgpu::BindGroup,
+    ) -> Self {
+        let (vertices_buf, indices_buf) = mesh_buffers(device, label, vertices, indices);
+        Self { id, vertices: vertices_buf, indices: indices_buf, group, count: indices.len() as u32 }
+    }
+
+    /// Records the indexed draw of the mesh with `pipeline` into `pass`.
+    pub(crate) fn draw(&self, pass: &mut wgpu::RenderPass<'_>, pipeline: &wgpu::RenderPipeline) {
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &self.group, &[]);
+        pass.set_vertex_buffer(0, self.vertices.slice(..));
+        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(0..self.count, 0, 0..1);
+    }
+}
+
+/// A uniform buffer binding visible to `visibility`.
+pub(crate) fn uniform_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A non-filterable float 2-D texture read by the fragment stage.
+pub(crate) fn texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+/// A uniform buffer of `T`, written each frame.
+pub(crate) fn uniform_buffer<T>(device: &wgpu::Device, label: &str) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: std::mem::size_of::<T>() as u64,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
