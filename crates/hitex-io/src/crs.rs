@@ -6,6 +6,47 @@
 
 use crate::geotiff::GeoRaster;
 
+/// Why a coordinate reference system cannot be made or used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CrsError {
+    /// The EPSG code is not in the register.
+    #[error("EPSG:{0} is not in the coordinate library's register")]
+    UnknownEpsg(u16),
+    /// The EPSG code's definition is refused by the coordinate library.
+    #[error("EPSG:{code} ({definition}) cannot be used: {reason}")]
+    UnusableEpsg {
+        /// The code.
+        code: u16,
+        /// Its PROJ.4 definition.
+        definition: String,
+        /// Why it was refused.
+        reason: Box<CrsError>,
+    },
+    /// The coordinate library cannot read a PROJ.4 definition.
+    #[error("{0}")]
+    Definition(String),
+    /// The projection cannot be inverted.
+    #[error("{0}: the projection has no inverse")]
+    NoInverse(String),
+    /// `EPSG:` followed by something that is not a code.
+    #[error("'{0}': the EPSG code is not a number")]
+    BadEpsgCode(String),
+    /// A name that is neither `EPSG:N` nor a definition.
+    #[error("'{0}' is neither EPSG:N nor a PROJ.4 definition (+proj=…)")]
+    NotACrs(String),
+    /// A local frame asked for at a place that has none.
+    #[error("no local frame at longitude {lon}°, latitude {lat}°")]
+    NoLocalFrame {
+        /// Longitude, degrees.
+        lon: f64,
+        /// Latitude, degrees.
+        lat: f64,
+    },
+    /// A raster's GeoKeys name no system the library resolves.
+    #[error("no coordinate reference system the coordinate library can resolve ({0}): the GeoKeys name no EPSG code")]
+    Unresolved(String),
+}
+
 /// A coordinate reference system that points can be transformed between.
 #[derive(Clone)]
 pub struct Crs {
@@ -28,33 +69,35 @@ impl PartialEq for Crs {
 
 impl Crs {
     /// The CRS of EPSG code `code`.
-    pub fn from_epsg(code: u16) -> Result<Crs, String> {
-        let def = crs_definitions::from_code(code)
-            .ok_or_else(|| format!("EPSG:{code} is not in the coordinate library's register"))?;
-        Self::from_definition(def.proj4, &format!("EPSG:{code}"))
-            .map_err(|e| format!("EPSG:{code} ({}) cannot be used: {e}", def.proj4))
+    pub fn from_epsg(code: u16) -> Result<Crs, CrsError> {
+        let def = crs_definitions::from_code(code).ok_or(CrsError::UnknownEpsg(code))?;
+        Self::from_definition(def.proj4, &format!("EPSG:{code}")).map_err(|e| CrsError::UnusableEpsg {
+            code,
+            definition: def.proj4.to_string(),
+            reason: Box::new(e),
+        })
     }
 
     /// The CRS of a PROJ.4 definition (`+proj=… +datum=…`), named `name` in messages.
-    pub fn from_definition(definition: &str, name: &str) -> Result<Crs, String> {
-        let proj = proj4rs::Proj::from_proj_string(definition).map_err(|e| e.to_string())?;
+    pub fn from_definition(definition: &str, name: &str) -> Result<Crs, CrsError> {
+        let proj = proj4rs::Proj::from_proj_string(definition).map_err(|e| CrsError::Definition(e.to_string()))?;
         if !(proj.has_forward() && proj.has_inverse()) {
-            return Err(format!("{name}: the projection has no inverse"));
+            return Err(CrsError::NoInverse(name.to_string()));
         }
         Ok(Crs { proj, name: name.to_string(), definition: definition.to_string() })
     }
 
     /// A CRS named by the user: `EPSG:N` or a PROJ.4 definition.
-    pub fn parse(s: &str) -> Result<Crs, String> {
+    pub fn parse(s: &str) -> Result<Crs, CrsError> {
         let s = s.trim();
         if let Some(code) = s.strip_prefix("EPSG:").or_else(|| s.strip_prefix("epsg:")) {
-            let code: u16 = code.trim().parse().map_err(|_| format!("'{s}': the EPSG code is not a number"))?;
+            let code: u16 = code.trim().parse().map_err(|_| CrsError::BadEpsgCode(s.to_string()))?;
             return Self::from_epsg(code);
         }
         if s.starts_with('+') {
             return Self::from_definition(s, s);
         }
-        Err(format!("'{s}' is neither EPSG:N nor a PROJ.4 definition (+proj=…)"))
+        Err(CrsError::NotACrs(s.to_string()))
     }
 
     /// The local metric frame of an area centred at (`lon`, `lat`) degrees:
@@ -62,9 +105,9 @@ impl Crs {
     /// (x east, y north, metres). Within 50 km of the centre its scale
     /// departs from 1 by less than 4·10⁻⁵ and its axes from east and north
     /// by less than the meridian convergence of the centre's neighbourhood.
-    pub fn local(lon: f64, lat: f64) -> Result<Crs, String> {
+    pub fn local(lon: f64, lat: f64) -> Result<Crs, CrsError> {
         if !(lon.is_finite() && lat.is_finite() && lat.abs() < 90.0) {
-            return Err(format!("no local frame at longitude {lon}°, latitude {lat}°"));
+            return Err(CrsError::NoLocalFrame { lon, lat });
         }
         // rounded as the definition states them, so that a frame read back from GeoKeys is equal
         let (lon, lat) = ((lon * 1e9).round() / 1e9, (lat * 1e9).round() / 1e9);
@@ -167,7 +210,7 @@ fn local_name(lon: f64, lat: f64) -> String {
 impl GeoRaster {
     /// The raster's CRS through the coordinate library: its EPSG code, or
     /// the UTM zone a user-defined projection code names.
-    pub fn crs(&self) -> Result<Crs, String> {
+    pub fn crs(&self) -> Result<Crs, CrsError> {
         if let Some(def) = &self.proj4 {
             let crs = Crs::from_definition(def, self.citation.as_deref().unwrap_or(def))?;
             // a local frame keeps its name
@@ -188,11 +231,7 @@ impl GeoRaster {
                 ),
                 &self.crs_name(),
             ),
-            _ => Err(format!(
-                "no coordinate reference system the coordinate library can resolve ({}): \
-                 the GeoKeys name no EPSG code",
-                self.citation.as_deref().unwrap_or("no citation")
-            )),
+            _ => Err(CrsError::Unresolved(self.citation.as_deref().unwrap_or("no citation").to_string())),
         }
     }
 
@@ -248,11 +287,17 @@ mod tests {
     #[test]
     fn unknown_codes_and_strings_are_refused_with_their_name() {
         let e = Crs::from_epsg(1).unwrap_err();
-        assert!(e.contains("EPSG:1"), "{e}");
+        assert_eq!(e, CrsError::UnknownEpsg(1));
+        assert!(e.to_string().contains("EPSG:1"), "{e}");
         let e = Crs::parse("UTM 33").unwrap_err();
-        assert!(e.contains("UTM 33"), "{e}");
+        assert_eq!(e, CrsError::NotACrs("UTM 33".into()));
+        assert!(e.to_string().contains("UTM 33"), "{e}");
         assert!(Crs::parse("EPSG:32633").is_ok());
         let e = Crs::parse("EPSG:x").unwrap_err();
-        assert!(e.contains("EPSG:x"), "{e}");
+        assert!(matches!(e, CrsError::BadEpsgCode(_)) && e.to_string().contains("EPSG:x"), "{e}");
+        let e = Crs::local(0.0, 90.0).unwrap_err();
+        assert!(matches!(e, CrsError::NoLocalFrame { .. }), "{e}");
+        let e = Crs::from_definition("+proj=nosuch", "a test").unwrap_err();
+        assert!(matches!(e, CrsError::Definition(_)), "{e}");
     }
 }

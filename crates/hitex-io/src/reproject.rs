@@ -263,7 +263,7 @@ pub fn co_register(
             Some(Ok(i)) if !i.is_geographic() => Some(i.clone()),
             _ => {
                 let (x0, x1, y0, y1) = dem.extent();
-                Some(Crs::local((x0 + x1) / 2.0, (y0 + y1) / 2.0).map_err(|m| err(dem_path, m))?)
+                Some(Crs::local((x0 + x1) / 2.0, (y0 + y1) / 2.0).map_err(|m| err(dem_path, m.to_string()))?)
             }
         },
         (None, Ok(d)) => Some(d.clone()),
