@@ -430,7 +430,7 @@ fn read_header(r: &mut impl Read, file_len: u64, path: &Path) -> Result<HbtfHead
     }
     // an HDR payload is held twice while it is decoded into half floats
     let held = payload_bytes + 2 * hdr.map_or(0, |f| f.bytes);
-    crate::limits::check_cap("the payload", Some(held)).map_err(fmt)?;
+    crate::limits::check_cap("the payload", Some(held)).map_err(|e| fmt(e.to_string()))?;
     Ok(HbtfHeader { version, header_bytes, width, height, grid, flags, payload_bytes, crc32: crc, hdr })
 }
 

@@ -522,7 +522,7 @@ fn decode_exr(bytes: &[u8], path: &Path) -> Result<ExrImage, IoError> {
         .sum();
     let claim = crate::limits::product(&[w as u64, h as u64, stored + 24]);
     crate::limits::check_cap(&format!("an EXR image of {w}x{h} texels in {} channels", names.len()), claim)
-        .map_err(fmt)?;
+        .map_err(|e| fmt(e.to_string()))?;
     let image = exr::prelude::read()
         .no_deep_data()
         .largest_resolution_level()
@@ -966,7 +966,7 @@ pub fn import_image_set(
                     .and_then(|a| Some(a + ((d * d) as u64).checked_mul(per_out)?))
                     .and_then(|a| a.checked_mul(texels));
                 crate::limits::check_cap(&format!("{} images of {sw}x{sh} texels", unique.len()), claim)
-                    .map_err(fmt)?;
+                    .map_err(|e| fmt(e.to_string()))?;
                 if hdr {
                     store_hdr.reserve_exact(unique.len() * sw as usize * sh as usize * 3);
                 } else {

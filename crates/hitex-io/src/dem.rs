@@ -241,7 +241,7 @@ pub fn parse_npy(bytes: &[u8]) -> Result<(u32, u32, Vec<f32>), String> {
     if body.len() < w * h * size {
         return Err(format!("{} data bytes for {h}×{w} values of {size} bytes", body.len()));
     }
-    crate::limits::check_cap(&format!("a {h}×{w} array"), Some(w as u64 * h as u64 * 4))?;
+    crate::limits::check_cap(&format!("a {h}×{w} array"), Some(w as u64 * h as u64 * 4)).map_err(|e| e.to_string())?;
     let val = |c: &[u8]| -> Option<f32> {
         let mut a = [0u8; 8];
         a[..c.len()].copy_from_slice(c);
@@ -282,7 +282,8 @@ pub fn parse_npz(bytes: &[u8]) -> Result<GeoRaster, String> {
         }
         // the declared size is only a claim: reserve what the compressed bytes can give, read at most the claim
         let what = format!("entry {name}");
-        let claim = crate::limits::check_claim(&what, Some(f.size()), f.compressed_size(), DEFLATE_RATIO)?;
+        let claim = crate::limits::check_claim(&what, Some(f.size()), f.compressed_size(), DEFLATE_RATIO)
+            .map_err(|e| e.to_string())?;
         let mut buf = Vec::with_capacity(claim.min(1 << 24) as usize);
         (&mut f).take(claim).read_to_end(&mut buf).map_err(|e| format!("entry {name}: {e}"))?;
         if buf.len() as u64 != claim {

@@ -257,11 +257,12 @@ fn read_header<R: Read + Seek>(
     let what = format!("a {w}×{h} raster of {bands} band{}", if bands == 1 { "" } else { "s" });
     let raw = samples * (bits as u64).div_ceil(8).max(1);
     if whole {
-        crate::limits::check_claim(&what, Some(raw), len, crate::limits::ANY_RATIO).map_err(fmt)?;
-        crate::limits::check_cap(&what, Some(raw + samples * 4)).map_err(fmt)?;
+        crate::limits::check_claim(&what, Some(raw), len, crate::limits::ANY_RATIO).map_err(|e| fmt(e.to_string()))?;
+        crate::limits::check_cap(&what, Some(raw + samples * 4)).map_err(|e| fmt(e.to_string()))?;
     } else {
         // read by windows: only the claim against the file's bytes matters
-        crate::limits::check_backing(&what, Some(raw), len, crate::limits::ANY_RATIO).map_err(fmt)?;
+        crate::limits::check_backing(&what, Some(raw), len, crate::limits::ANY_RATIO)
+            .map_err(|e| fmt(e.to_string()))?;
     }
     let keys = d.get_tag_u16_vec(Tag::GeoKeyDirectoryTag).unwrap_or_default();
     let key = |id: u16| keys.chunks_exact(4).skip(1).find(|k| k[0] == id && k[1] == 0).map(|k| k[3]);

@@ -46,8 +46,8 @@ pub fn decode_image(bytes: &[u8], path: &Path, color_space: ColorSpace) -> Resul
     }
     // the decoded samples must come out of the file's bytes; with the RGBA8 copy they must fit the cap
     let what = format!("a {w}x{h} image");
-    crate::limits::check_claim(&what, Some(raw), bytes.len() as u64, ratio).map_err(fmt)?;
-    crate::limits::check_cap(&what, raw.checked_add(w as u64 * h as u64 * 4)).map_err(fmt)?;
+    crate::limits::check_claim(&what, Some(raw), bytes.len() as u64, ratio).map_err(|e| fmt(e.to_string()))?;
+    crate::limits::check_cap(&what, raw.checked_add(w as u64 * h as u64 * 4)).map_err(|e| fmt(e.to_string()))?;
     let img = reader()?.decode().map_err(|e| fmt(format!("cannot decode the image: {e}")))?.into_rgba8();
     let (w, h) = img.dimensions();
     let texels: Vec<[u8; 4]> = img.into_raw().chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect();

@@ -24,11 +24,60 @@ pub const DEFLATE_RATIO: u64 = 1032;
 /// PackBits expand far less than this).
 pub const ANY_RATIO: u64 = 4096;
 
+/// A size that cannot be parsed, or a claim refused before allocating.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LimitError {
+    /// Text that is not a size (`unit`: a letter other than K, M, G, T, B).
+    #[error("'{text}' is not a size such as 512M or 2G{}", if *.unit { " (units K, M, G, T)" } else { "" })]
+    NotASize {
+        /// The text given.
+        text: String,
+        /// Whether its unit letter is the fault.
+        unit: bool,
+    },
+    /// A size below one byte or beyond 2^63.
+    #[error("'{0}' is not a usable size (at least 1 byte)")]
+    Unusable(String),
+    /// A claim beyond the memory cap.
+    #[error(
+        "{what} needs {} ({claimed} bytes), beyond the memory cap of {} (raise it with --max-memory or HITEX_MAX_MEMORY)",
+        human(*.claimed),
+        human(*.cap)
+    )]
+    BeyondCap {
+        /// What claims the memory.
+        what: String,
+        /// Bytes claimed.
+        claimed: u64,
+        /// The cap in force.
+        cap: u64,
+    },
+    /// A claim that overflowed 64 bits.
+    #[error("{0} claims more than 2^64 bytes")]
+    Overflow(String),
+    /// A claim beyond what the file's data can decode to.
+    #[error(
+        "{what} claims {} but the file holds only {available} bytes of data for it (at most {} once decoded)",
+        human(*.claimed),
+        human(*.bound)
+    )]
+    Unbacked {
+        /// What claims the memory.
+        what: String,
+        /// Bytes claimed.
+        claimed: u64,
+        /// Bytes of data in the file for it.
+        available: u64,
+        /// The most those bytes decode to.
+        bound: u64,
+    },
+}
+
 /// 0 = not yet read from the environment.
 static CAP: AtomicU64 = AtomicU64::new(0);
 
 /// Parses `512M`, `2G`, `1048576`, `1.5G` (binary multiples).
-pub fn parse_bytes(s: &str) -> Result<u64, String> {
+pub fn parse_bytes(s: &str) -> Result<u64, LimitError> {
     let t = s.trim();
     let (num, mult) = match t.char_indices().last() {
         Some((i, c)) if c.is_ascii_alphabetic() => {
@@ -38,16 +87,16 @@ pub fn parse_bytes(s: &str) -> Result<u64, String> {
                 'G' => 1 << 30,
                 'T' => 1 << 40,
                 'B' => 1,
-                _ => return Err(format!("'{s}' is not a size such as 512M or 2G (units K, M, G, T)")),
+                _ => return Err(LimitError::NotASize { text: s.to_string(), unit: true }),
             };
             (&t[..i], m)
         }
         _ => (t, 1),
     };
-    let v: f64 = num.trim().parse().map_err(|_| format!("'{s}' is not a size such as 512M or 2G"))?;
+    let v: f64 = num.trim().parse().map_err(|_| LimitError::NotASize { text: s.to_string(), unit: false })?;
     let bytes = v * mult as f64;
     if !bytes.is_finite() || bytes < 1.0 || bytes > u64::MAX as f64 / 2.0 {
-        return Err(format!("'{s}' is not a usable size (at least 1 byte)"));
+        return Err(LimitError::Unusable(s.to_string()));
     }
     Ok(bytes as u64)
 }
@@ -78,39 +127,31 @@ fn human(b: u64) -> String {
 
 /// Checks that `claimed` bytes for `what` fit the cap. `None` means the claim
 /// overflowed 64 bits.
-pub fn check_cap(what: &str, claimed: Option<u64>) -> Result<u64, String> {
+pub fn check_cap(what: &str, claimed: Option<u64>) -> Result<u64, LimitError> {
     let cap = max_bytes();
     match claimed {
         Some(c) if c <= cap => Ok(c),
-        Some(c) => Err(format!(
-            "{what} needs {} ({c} bytes), beyond the memory cap of {} (raise it with --max-memory or HITEX_MAX_MEMORY)",
-            human(c),
-            human(cap)
-        )),
-        None => Err(format!("{what} claims more than 2^64 bytes")),
+        Some(c) => Err(LimitError::BeyondCap { what: what.to_string(), claimed: c, cap }),
+        None => Err(LimitError::Overflow(what.to_string())),
     }
 }
 
 /// Checks a claim against the data that backs it: `claimed` bytes decoded
 /// from `available` bytes of input that expands at most `ratio` times, and
 /// against the cap.
-pub fn check_claim(what: &str, claimed: Option<u64>, available: u64, ratio: u64) -> Result<u64, String> {
+pub fn check_claim(what: &str, claimed: Option<u64>, available: u64, ratio: u64) -> Result<u64, LimitError> {
     check_cap(what, claimed)?;
     check_backing(what, claimed, available, ratio)
 }
 
 /// Checks a claim against the data that backs it only (for data read in
 /// bounded pieces, where the whole is never held).
-pub fn check_backing(what: &str, claimed: Option<u64>, available: u64, ratio: u64) -> Result<u64, String> {
-    let Some(c) = claimed else { return Err(format!("{what} claims more than 2^64 bytes")) };
+pub fn check_backing(what: &str, claimed: Option<u64>, available: u64, ratio: u64) -> Result<u64, LimitError> {
+    let Some(c) = claimed else { return Err(LimitError::Overflow(what.to_string())) };
     // a small constant allows for headers and tables that expand more
     let bound = available.saturating_mul(ratio).saturating_add(1 << 16);
     if c > bound {
-        return Err(format!(
-            "{what} claims {} but the file holds only {available} bytes of data for it (at most {} once decoded)",
-            human(c),
-            human(bound)
-        ));
+        return Err(LimitError::Unbacked { what: what.to_string(), claimed: c, available, bound });
     }
     Ok(c)
 }
@@ -139,10 +180,18 @@ mod tests {
     fn claims_are_checked_against_the_data_and_the_cap() {
         // a 2 GB claim backed by 1 KB of deflated data
         let e = check_claim("image", Some(2 << 30), 1024, DEFLATE_RATIO).unwrap_err();
-        assert!(e.contains("holds only 1024 bytes"), "{e}");
+        assert!(matches!(e, LimitError::Unbacked { available: 1024, .. }), "{e}");
+        assert!(e.to_string().contains("holds only 1024 bytes"), "{e}");
         // honest claims pass
         assert_eq!(check_claim("image", Some(4 << 20), 1 << 20, DEFLATE_RATIO), Ok(4 << 20));
-        assert!(check_cap("x", None).unwrap_err().contains("2^64"));
+        assert!(check_cap("x", None).unwrap_err().to_string().contains("2^64"));
+        let e = check_cap("x", Some(u64::MAX / 2)).unwrap_err();
+        assert!(matches!(e, LimitError::BeyondCap { .. }) && e.to_string().contains("--max-memory"), "{e}");
+        assert_eq!(
+            parse_bytes("1X").unwrap_err().to_string(),
+            "'1X' is not a size such as 512M or 2G (units K, M, G, T)"
+        );
+        assert_eq!(parse_bytes("1.2.3").unwrap_err().to_string(), "'1.2.3' is not a size such as 512M or 2G");
         assert_eq!(product(&[1 << 32, 1 << 31, 4]), None);
         assert_eq!(product(&[3, 5, 7]), Some(105));
     }

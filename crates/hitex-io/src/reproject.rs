@@ -286,7 +286,7 @@ pub fn co_register(
         (Some(t), Ok(d)) if t != d => {
             let grid = covering_grid(&dem, d, t, max_pixels).map_err(|m| err(dem_path, m))?;
             let bytes = grid.width as u64 * grid.height as u64 * dem.bands as u64 * 4;
-            crate::limits::check_cap("the reprojected DEM", Some(bytes)).map_err(|m| err(dem_path, m))?;
+            crate::limits::check_cap("the reprojected DEM", Some(bytes)).map_err(|m| err(dem_path, m.to_string()))?;
             let r = reproject(&dem, d, t, &grid, t.epsg());
             notes.push(format!(
                 "{}: reprojected from {} to {} ({}×{} posts at {:.2} × {:.2} m)",
@@ -335,7 +335,8 @@ pub fn co_register(
                     ));
                 }
                 let bytes = grid.width as u64 * grid.height as u64 * img.bands as u64 * 4;
-                crate::limits::check_cap("the reprojected imagery", Some(bytes)).map_err(|m| err(path, m))?;
+                crate::limits::check_cap("the reprojected imagery", Some(bytes))
+                    .map_err(|m| err(path, m.to_string()))?;
                 let r = reproject(&img, &ic, t, &grid, t.epsg());
                 notes.push(format!(
                     "{}: reprojected from {} to {} ({}×{} pixels over the DEM)",
