@@ -16,7 +16,7 @@ pub struct LevelMaps {
     /// Maps per side of that square.
     pub per_side: u32,
     /// Maps at this level.
-    pub maps: u32,
+    pub maps: u64,
 }
 
 /// The active area of eq. (7): over every altitude and pitch with the view
@@ -40,10 +40,25 @@ pub fn active_area(fov_deg: f64, pixels: u32, map_texels: u32, levels: u32) -> R
         });
     }
     let r0 = pixels as f64 / (2.0 * fov_deg.to_radians().sin() * map_texels as f64);
+    // 2·⌈r0⌉ maps per side must be a count (a field of view near 180° over
+    // a wide scanline asks for more maps than any store holds)
+    let half = r0.ceil().max(1.0);
+    if half > (u32::MAX / 2) as f64 {
+        return Err(CoreError::OutOfRange {
+            key: "fov".into(),
+            message: format!(
+                "{fov_deg}° over {pixels} pixels of {map_texels}-texel maps needs {:.3e} maps per side",
+                2.0 * half
+            ),
+        });
+    }
+    let per_side = 2 * half as u32;
     Ok((0..levels)
-        .map(|l| {
-            let per_side = 2 * (r0.ceil() as u32).max(1);
-            LevelMaps { level: l, radius: r0 * 2f64.powi(-(l as i32)), per_side, maps: per_side * per_side }
+        .map(|l| LevelMaps {
+            level: l,
+            radius: r0 * 2f64.powi(-(l as i32)),
+            per_side,
+            maps: per_side as u64 * per_side as u64,
         })
         .collect())
 }
@@ -330,7 +345,7 @@ mod tests {
         assert!((a[0].radius - 2.83).abs() < 0.01, "{}", a[0].radius);
         assert!((a[3].radius - 2.83 / 8.0).abs() < 0.01);
         assert!(a.iter().all(|l| l.maps == 36));
-        assert_eq!(a.iter().map(|l| l.maps).sum::<u32>(), 324);
+        assert_eq!(a.iter().map(|l| l.maps).sum::<u64>(), 324);
         assert!(active_area(0.0, 1024, 256, 9).is_err());
         assert!(active_area(45.0, 0, 256, 9).is_err());
     }

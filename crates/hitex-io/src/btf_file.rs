@@ -347,10 +347,11 @@ fn read_header(r: &mut impl Read, file_len: u64, path: &Path) -> Result<HbtfHead
     let mut fixed = [0u8; FIXED_HEADER];
     read(&mut fixed[..4], "magic", 0)?;
     if fixed[..4] != HBTF_MAGIC {
-        return Err(fmt(format!(
-            "not an .hbtf file: magic {:?}, expected \"HBTF\"",
-            String::from_utf8_lossy(&fixed[..4])
-        )));
+        let what = match crate::binary_kind(&fixed[..4]) {
+            Some(kind) => kind.to_string(),
+            None => format!("magic {}", fixed[..4].escape_ascii()),
+        };
+        return Err(fmt(format!("not an .hbtf file ({what}; an .hbtf starts with \"HBTF\")")));
     }
     read(&mut fixed[4..], "fixed header fields", 4)?;
     let field = |i: usize| u32::from_le_bytes([fixed[i], fixed[i + 1], fixed[i + 2], fixed[i + 3]]);

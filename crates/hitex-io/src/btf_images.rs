@@ -890,13 +890,14 @@ pub fn import_image_set(
             vm.iter().for_each(|&i| mult_v[i] += 1);
             lm.iter().for_each(|&i| mult_l[i] += 1);
             let present: u64 = pairs.keys().map(|&(v, l)| mult_v[v] * mult_l[l]).sum();
+            let absent = (d * d) as u64 - present;
             return Err(fmt(format!(
-                "the images lie on the grid {} but {} of its {} (view, light) combinations have no image: {}{}",
+                "the images lie on the grid {} but {absent} of its {} (view, light) combinations {} no image: {}{}",
                 describe_grid(&target),
-                (d * d) as u64 - present,
                 d * d,
+                if absent == 1 { "has" } else { "have" },
                 missing.join(", "),
-                if (d * d) as u64 - present > missing.len() as u64 { ", …" } else { "" }
+                if absent > missing.len() as u64 { ", …" } else { "" }
             )));
         }
         slots

@@ -11,7 +11,7 @@ use crate::geotiff::GeoRaster;
 pub enum CrsError {
     /// The EPSG code is not in the register.
     #[error("EPSG:{0} is not in the coordinate library's register")]
-    UnknownEpsg(u16),
+    UnknownEpsg(u32),
     /// The EPSG code's definition is refused by the coordinate library.
     #[error("EPSG:{code} ({definition}) cannot be used: {reason}")]
     UnusableEpsg {
@@ -70,7 +70,7 @@ impl PartialEq for Crs {
 impl Crs {
     /// The CRS of EPSG code `code`.
     pub fn from_epsg(code: u16) -> Result<Crs, CrsError> {
-        let def = crs_definitions::from_code(code).ok_or(CrsError::UnknownEpsg(code))?;
+        let def = crs_definitions::from_code(code).ok_or(CrsError::UnknownEpsg(code as u32))?;
         Self::from_definition(def.proj4, &format!("EPSG:{code}")).map_err(|e| CrsError::UnusableEpsg {
             code,
             definition: def.proj4.to_string(),
@@ -91,7 +91,9 @@ impl Crs {
     pub fn parse(s: &str) -> Result<Crs, CrsError> {
         let s = s.trim();
         if let Some(code) = s.strip_prefix("EPSG:").or_else(|| s.strip_prefix("epsg:")) {
-            let code: u16 = code.trim().parse().map_err(|_| CrsError::BadEpsgCode(s.to_string()))?;
+            let code: u32 = code.trim().parse().map_err(|_| CrsError::BadEpsgCode(s.to_string()))?;
+            // codes run to 32767 (EPSG's own) and a little beyond (ESRI's)
+            let code = u16::try_from(code).map_err(|_| CrsError::UnknownEpsg(code))?;
             return Self::from_epsg(code);
         }
         if s.starts_with('+') {
@@ -288,6 +290,9 @@ mod tests {
     fn unknown_codes_and_strings_are_refused_with_their_name() {
         let e = Crs::from_epsg(1).unwrap_err();
         assert_eq!(e, CrsError::UnknownEpsg(1));
+        // a code too large for any table is unknown, not "not a number"
+        assert_eq!(Crs::parse("EPSG:99999").unwrap_err(), CrsError::UnknownEpsg(99999));
+        assert_eq!(Crs::parse("EPSG:4x").unwrap_err(), CrsError::BadEpsgCode("EPSG:4x".into()));
         assert!(e.to_string().contains("EPSG:1"), "{e}");
         let e = Crs::parse("UTM 33").unwrap_err();
         assert_eq!(e, CrsError::NotACrs("UTM 33".into()));

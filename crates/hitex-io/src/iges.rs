@@ -50,6 +50,9 @@ pub struct IgesModel {
     pub warnings: Vec<String>,
     /// Inconsistencies found and repaired.
     pub repairs: Vec<String>,
+    /// The length unit of the global section (parameters 14 and 15: "mm",
+    /// "inch", …), where it names one.
+    pub units: Option<String>,
 }
 
 struct DirEntry {
@@ -115,7 +118,10 @@ pub fn load_iges(path: &Path) -> Result<IgesModel, IgesError> {
         return Err(err("", format!("{} bytes exceeds the {MAX_IGES_FILE_BYTES}-byte limit", meta.len())));
     }
     let bytes = std::fs::read(path).map_err(|e| err("", e.to_string()))?;
-    parse_iges(&String::from_utf8_lossy(&bytes), &file)
+    // IGES is ASCII in fixed columns: a stray byte beyond ASCII stands as
+    // one '?' so that every later column stays where the file put it
+    let text: String = bytes.iter().map(|&b| if b.is_ascii() { b as char } else { '?' }).collect();
+    parse_iges(&text, &file)
 }
 
 /// Parses IGES text; `name` is used in messages.
@@ -153,6 +159,7 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
     }
     // global: parameter and record delimiters
     let (pdelim, rdelim) = delimiters(&global, &mut model.repairs);
+    model.units = global_units(&global_params(&global, pdelim, rdelim));
 
     // directory entries: pairs of lines
     if !dir_lines.len().is_multiple_of(2) {
@@ -896,6 +903,105 @@ fn delimiters(global: &str, repairs: &mut Vec<String>) -> (char, char) {
         }
     };
     (pd, rd)
+}
+
+/// The global section's parameters in order (Hollerith strings as their
+/// text), up to the record delimiter.
+fn global_params(global: &str, pd: char, rd: char) -> Vec<String> {
+    let chars: Vec<char> = global.chars().collect();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i <= chars.len() {
+        // skip blanks before a parameter
+        while i < chars.len() && chars[i] == ' ' {
+            i += 1;
+        }
+        let digits = chars[i..].iter().take_while(|c| c.is_ascii_digit()).count();
+        let value = if digits > 0 && chars.get(i + digits).is_some_and(|c| *c == 'H' || *c == 'h') {
+            // nHtext: n characters taken as they are, delimiters included
+            let n: usize = chars[i..i + digits].iter().collect::<String>().parse().unwrap_or(0);
+            let start = i + digits + 1;
+            let end = (start + n).min(chars.len());
+            i = end;
+            chars[start..end].iter().collect::<String>()
+        } else {
+            let start = i;
+            while i < chars.len() && chars[i] != pd && chars[i] != rd {
+                i += 1;
+            }
+            chars[start..i].iter().collect::<String>().trim().to_string()
+        };
+        out.push(value);
+        while i < chars.len() && chars[i] == ' ' {
+            i += 1;
+        }
+        match chars.get(i) {
+            Some(c) if *c == pd => i += 1,
+            _ => break,
+        }
+    }
+    out
+}
+
+/// [`global_params`] with the default delimiters, for tests elsewhere in the crate.
+#[cfg(test)]
+pub(crate) fn tests_global_params(global: &str) -> Vec<String> {
+    global_params(global, ',', ';')
+}
+
+/// The length unit of the global parameters 14 (unit flag) and 15 (unit
+/// name), as the other readers name units ("mm", "inch", …).
+fn global_units(params: &[String]) -> Option<String> {
+    let flag = params.get(13).and_then(|f| f.trim().parse::<i64>().ok());
+    let name = params.get(14).map(|n| n.trim().to_ascii_uppercase()).unwrap_or_default();
+    let by_flag = match flag {
+        Some(1) => Some("inch"),
+        Some(2) => Some("mm"),
+        Some(4) => Some("ft"),
+        Some(5) => Some("mile"),
+        Some(6) => Some("m"),
+        Some(7) => Some("km"),
+        Some(8) => Some("mil"),
+        Some(9) => Some("µm"),
+        Some(10) => Some("cm"),
+        Some(11) => Some("microinch"),
+        _ => None,
+    };
+    by_flag.map(str::to_string).or_else(|| {
+        // flag 3: the unit is the name (e.g. 4HINCH, 2HMM)
+        let from_name = match name.as_str() {
+            "IN" | "INCH" => "inch",
+            "MM" => "mm",
+            "FT" => "ft",
+            "MI" => "mile",
+            "M" => "m",
+            "KM" => "km",
+            "MIL" => "mil",
+            "UM" => "µm",
+            "CM" => "cm",
+            "UIN" => "microinch",
+            _ => return (!name.is_empty()).then(|| name.to_ascii_lowercase()),
+        };
+        Some(from_name.to_string())
+    })
+}
+
+/// The IGES unit flag and name of a length unit named as [`global_units`]
+/// names them; `None` for a unit IGES has no flag for.
+pub fn iges_unit(units: &str) -> Option<(u32, &'static str)> {
+    Some(match units {
+        "inch" => (1, "INCH"),
+        "mm" => (2, "MM"),
+        "ft" => (4, "FT"),
+        "mile" => (5, "MI"),
+        "m" => (6, "M"),
+        "km" => (7, "KM"),
+        "mil" => (8, "MIL"),
+        "µm" => (9, "UM"),
+        "cm" => (10, "CM"),
+        "microinch" => (11, "UIN"),
+        _ => return None,
+    })
 }
 
 fn num(s: &str) -> Option<f64> {

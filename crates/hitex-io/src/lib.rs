@@ -40,6 +40,32 @@ pub use step::{StepError, StepModel, StepOptions, load_step, parse_step};
 use std::path::PathBuf;
 use thiserror::Error;
 
+/// What a file of binary content is, from its first bytes (`a PNG image`,
+/// `a TIFF image`, …; `binary data` for content with NUL bytes and no known
+/// signature), or `None` for text: so that a reader of text can say what
+/// it was given instead of quoting the bytes.
+pub fn binary_kind(head: &[u8]) -> Option<&'static str> {
+    const SIGNATURES: &[(&[u8], &str)] = &[
+        (b"\x89PNG", "a PNG image"),
+        (b"II*\0", "a TIFF image"),
+        (b"MM\0*", "a TIFF image"),
+        (b"II+\0", "a BigTIFF image"),
+        (b"\xff\xd8\xff", "a JPEG image"),
+        (b"PK\x03\x04", "a zip archive"),
+        (b"\x1f\x8b", "a gzip archive"),
+        (b"v/1\x01", "an OpenEXR image"),
+        (b"HBTF", "an .hbtf BTF"),
+        (b"%PDF", "a PDF document"),
+        (b"\x93NUMPY", "a NumPy array"),
+    ];
+    for (sig, kind) in SIGNATURES {
+        if head.starts_with(sig) {
+            return Some(kind);
+        }
+    }
+    head.iter().take(4096).any(|&b| b == 0).then_some("binary data")
+}
+
 /// A file that could not be read, parsed or written.
 #[derive(Debug, Error)]
 pub enum IoError {

@@ -60,7 +60,7 @@ fn from_iges(name: &str, m: IgesModel) -> NurbsModel {
         repairs: m.repairs,
         notes: vec![],
         census: Default::default(),
-        units: None,
+        units: m.units,
         colors: vec![],
     }
 }

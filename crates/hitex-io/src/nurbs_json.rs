@@ -127,6 +127,13 @@ pub fn to_nurbs_json(surfaces: &[IgesSurface]) -> String {
 /// and, for trimmed surfaces, its loops as degree-1 parameter-space curves
 /// (126) on the surface (142) bounding it (144), which read back exactly.
 pub fn to_iges(surfaces: &[IgesSurface], description: &str) -> String {
+    to_iges_in(surfaces, description, None)
+}
+
+/// [`to_iges`] with the model's length unit in the global section
+/// (`units` as the readers name them: "mm", "inch", …; `None` or a unit
+/// IGES has no flag for: millimetres, IGES's own default).
+pub fn to_iges_in(surfaces: &[IgesSurface], description: &str, units: Option<&str>) -> String {
     fn lines_of(data: &str, width: usize) -> Vec<String> {
         // break at delimiters so that no number is split
         let mut out = Vec::new();
@@ -143,8 +150,13 @@ pub fn to_iges(surfaces: &[IgesSurface], description: &str) -> String {
         out
     }
     let mut s = format!("{:<72}S{:>7}\n", description.chars().take(72).collect::<String>(), 1);
-    let global = "1H,,1H;,5Hhitex,9Hmodel.igs,5Hhitex,5Hhitex,32,38,6,308,15,5Hhitex,1.0,2,2HMM,1,1.0,15H20260101.000000,1e-09,1000.0,5Hhitex,5Hhitex,11,0;";
-    let glines = lines_of(global, 72);
+    let (flag, name) = units.and_then(crate::iges::iges_unit).unwrap_or((2, "MM"));
+    let global = format!(
+        "1H,,1H;,5Hhitex,9Hmodel.igs,5Hhitex,5Hhitex,32,38,6,308,15,5Hhitex,1.0,{flag},{}H{name},1,1.0,\
+         15H20260101.000000,1e-09,1000.0,5Hhitex,5Hhitex,11,0;",
+        name.len()
+    );
+    let glines = lines_of(&global, 72);
     for (i, l) in glines.iter().enumerate() {
         s += &format!("{l:<72}G{:>7}\n", i + 1);
     }
@@ -285,6 +297,21 @@ mod tests {
         for (x, y) in a.iter().zip(&m.surfaces) {
             assert_eq!(x.surface, y.surface);
         }
+    }
+
+    #[test]
+    fn iges_keeps_the_length_unit() {
+        let a = teapot();
+        for (units, back) in [(Some("inch"), "inch"), (Some("m"), "m"), (Some("mm"), "mm"), (None, "mm")] {
+            let m = parse_iges(&to_iges_in(&a, "units", units), "u.igs").unwrap();
+            assert_eq!(m.units.as_deref(), Some(back), "{units:?}");
+        }
+        // flag 3: the unit by name; a Hollerith string may hold delimiters
+        let g = "1H,,1H;,7Ha,b;c.d,9Hmodel.igs,5Hhitex,5Hhitex,32,38,6,308,15,5Hhitex,1.0,3,4HINCH,1;";
+        let p = crate::iges::tests_global_params(g);
+        assert_eq!(p[2], "a,b;c.d");
+        assert_eq!(p[13], "3");
+        assert_eq!(p[14], "INCH");
     }
 
     #[test]

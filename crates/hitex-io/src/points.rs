@@ -20,6 +20,12 @@ pub fn load_points(path: &Path) -> Result<Vec<[f64; 3]>, IoError> {
         });
     }
     let bytes = std::fs::read(path).map_err(read)?;
+    if let Some(kind) = crate::binary_kind(&bytes) {
+        return Err(IoError::Format {
+            path: path.to_path_buf(),
+            message: format!("{kind}, not a point file (XYZ text: x y z per line, or .json)"),
+        });
+    }
     let json = path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("json"));
     parse_points(&String::from_utf8_lossy(&bytes), json)
         .map_err(|message| IoError::Format { path: path.to_path_buf(), message })
@@ -104,5 +110,20 @@ mod tests {
             let e = parse_points(text, json).unwrap_err();
             assert!(e.contains(want), "{text}: {e}");
         }
+    }
+
+    #[test]
+    fn a_binary_file_is_named_not_quoted() {
+        let dir = std::env::temp_dir().join(format!("hitex-points-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let tif = dir.join("l7.tif");
+        std::fs::write(&tif, b"II*\0\x08\0\0\0\x11\0\0\x01\x03\0 1 2 3").unwrap();
+        let e = load_points(&tif).unwrap_err().to_string();
+        assert!(e.contains("a TIFF image, not a point file") && !e.contains('\0'), "{e}");
+        let raw = dir.join("raw.xyz");
+        std::fs::write(&raw, b"1 2 3\n\0\0\0\n").unwrap();
+        assert!(load_points(&raw).unwrap_err().to_string().contains("binary data"));
+        assert_eq!(crate::binary_kind(b"1 2 3\n"), None);
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -99,19 +99,24 @@ pub fn text(f: &mut Frame, x: i64, y: i64, scale: i64, s: &str, color: [u8; 3]) 
     }
 }
 
-/// Font pixels per glyph pixel for a frame `height` pixels tall.
-fn scale_for(height: u32) -> i64 {
-    (height as i64 / 150).clamp(1, 4)
+/// Font pixels per glyph pixel for a `width`×`height` frame: larger on
+/// taller frames, and never so large that the strip takes more than a
+/// third of the width (0: the frame is too narrow for a legend).
+fn scale_for(width: u32, height: u32) -> i64 {
+    (height as i64 / 150).clamp(1, 4).min(width as i64 / (STRIP * 3))
 }
 
-/// Characters per line the legend strip holds.
-const COLUMNS: i64 = 10;
+/// Characters per line the legend strip holds (a value label such as
+/// `-1.00e-12` beside the ramp included).
+const COLUMNS: i64 = 11;
+
+/// The strip's width in font pixels.
+const STRIP: i64 = COLUMNS * 4 + 3;
 
 /// Width in pixels of the strip at the right edge of a `width`×`height`
 /// frame that a legend covers (none when the frame is too small to hold one).
 pub fn legend_width(width: u32, height: u32) -> u32 {
-    let w = (COLUMNS * 4 + 3) * scale_for(height);
-    if w as u32 * 3 > width { 0 } else { w as u32 }
+    (STRIP * scale_for(width, height)) as u32
 }
 
 /// Value labels with the fewest digits that still tell the range apart from
@@ -123,20 +128,20 @@ pub fn format_value(v: f32) -> String {
 
 /// Draws the diverging ramp for `[-range, range]` in the legend strip at the
 /// right edge of the frame, with the values at its top, middle and bottom
-/// and up to three `title` lines (name, units, how the range was chosen)
+/// and up to four `title` lines (name, units, how the range was chosen)
 /// above it. Lines longer than the strip are cut.
 pub fn diverging_legend(f: &mut Frame, range: f32, title: &[&str]) {
     if legend_width(f.width, f.height) == 0 {
         return;
     }
-    let scale = scale_for(f.height);
+    let scale = scale_for(f.width, f.height);
     let bar_w = 6 * scale;
     let x0 = f.width as i64 - legend_width(f.width, f.height) as i64 + scale;
     let white = [235, 235, 235];
     let line = 7 * scale;
-    let lines = title.len().min(3) as i64;
+    let lines = title.len().min(4) as i64;
     let top = (f.height as i64 / 6).max(lines * line + 2 * scale);
-    for (k, t) in title.iter().take(3).enumerate() {
+    for (k, t) in title.iter().take(4).enumerate() {
         let cut: String = t.chars().take(COLUMNS as usize).collect();
         text(f, x0, top - (lines - k as i64) * line, scale, &cut, white);
     }
@@ -162,7 +167,7 @@ pub fn swatch_legend(f: &mut Frame, title: &[&str], entries: &[([u8; 3], String)
     if legend_width(f.width, f.height) == 0 {
         return;
     }
-    let scale = scale_for(f.height);
+    let scale = scale_for(f.width, f.height);
     let x0 = f.width as i64 - legend_width(f.width, f.height) as i64 + scale;
     let white = [235, 235, 235];
     let line = 7 * scale;
@@ -242,6 +247,24 @@ mod tests {
         diverging_legend(&mut t, 1.0, &["X"]);
         swatch_legend(&mut t, &["X"], &[([255, 0, 0], "0".into())]);
         assert!(t.rgba.iter().all(|&b| b == 0));
+    }
+
+    #[test]
+    fn every_label_fits_and_narrow_tall_frames_keep_their_legend() {
+        for (w, h) in [(512u32, 512u32), (300, 600), (320, 320), (1600, 1200), (160, 120)] {
+            let strip = legend_width(w, h);
+            assert!(strip > 0 && strip * 3 <= w, "{w}x{h}: strip {strip}");
+            let scale = scale_for(w, h) as u32;
+            let mut f = Frame { width: w, height: h, rgba: vec![0; (w * h * 4) as usize] };
+            // the widest labels: nine characters beside the ramp, eleven in the title
+            diverging_legend(&mut f, 1.5e-12, &["PRINCIPAL K", "1/LENGTH", "±2×P75|H|", "CURVED PART"]);
+            let lit = |x: u32| (0..h).any(|y| f.rgba[((y * w + x) * 4) as usize..][..3] != [0, 0, 0]);
+            // nothing cut at the right edge: the last columns stay clear
+            for x in w - 2 * scale..w {
+                assert!(!lit(x), "{w}x{h}: column {x} lit");
+            }
+            assert!((w - strip..w).any(lit), "{w}x{h}: no legend");
+        }
     }
 
     #[test]

@@ -507,10 +507,15 @@ pub struct PreparedNurbs {
     pub tool_radius: f32,
     /// Curvature mapped to full colour on the ramp: [Gaussian, mean,
     /// principal]; by default twice the area-weighted 75th percentile of |K|
-    /// and |H| over the surface, and of max(|κ1|, |κ2|) over its curved part
+    /// and |H| over the surface (over its curved part where flat faces hold
+    /// more than a quarter of the area), and of max(|κ1|, |κ2|) over its curved part
     /// (radius of curvature below 10⁴ × the model's bounding radius; none:
     /// 1 / that radius).
     pub curvature_range: [f32; 3],
+    /// Whether each default of [`PreparedNurbs::curvature_range`] was
+    /// taken over the curved part alone (always for the principal ramp; for
+    /// |K| and |H| where flat faces hold more than a quarter of the area).
+    pub curvature_over_curved_part: [bool; 3],
     /// Linear background.
     pub background: Vec3,
     /// Use the straight-line kernels of the prepared degree (bicubic) for
@@ -700,6 +705,7 @@ impl PreparedNurbs {
         let mut ks = Vec::new();
         let mut hs = Vec::new();
         let mut ps = Vec::new();
+        let (mut ks_curved, mut hs_curved) = (Vec::new(), Vec::new());
         for s in &surfaces {
             let ((u0, u1), (v0, v1)) = s.domain();
             let cell = (u1 - u0) * (v1 - v0) / 36.0;
@@ -714,6 +720,12 @@ impl PreparedNurbs {
                 if c.gaussian.is_finite() && c.mean.is_finite() && area.is_finite() {
                     ks.push((c.gaussian.abs(), area));
                     hs.push((c.mean.abs(), area));
+                    if c.gaussian.abs() * (radius as f64).powi(2) > 1e-8 {
+                        ks_curved.push((c.gaussian.abs(), area));
+                    }
+                    if c.mean.abs() * radius as f64 > 1e-4 {
+                        hs_curved.push((c.mean.abs(), area));
+                    }
                     // the principal ramp is scaled by the curved part alone:
                     // on a machined part most of the area is planes, whose
                     // zero would set a scale of nothing
@@ -736,10 +748,27 @@ impl PreparedNurbs {
                     break;
                 }
             }
-            (2.0 * at).max(1e-12) as f32
+            2.0 * at as f32
         };
-        let principal_range = if ps.is_empty() { 1.0 / radius.max(f32::MIN_POSITIVE) } else { pick(ps) };
-        let curvature_range = [pick(ks), pick(hs), principal_range];
+        let r = radius.max(f32::MIN_POSITIVE);
+        let principal_range = if ps.is_empty() { 1.0 / r } else { pick(ps).max(1e-12) };
+        // |K| and |H| over the whole surface, unless flat faces hold more
+        // than a quarter of the area (a machined part): their zeros would
+        // set a scale of nothing, and the curved part alone sets it
+        let over = |all: Vec<(f64, f64)>, curved: Vec<(f64, f64)>, floor: f32, none: f32| -> (f32, bool) {
+            let whole = pick(all);
+            if whole / 2.0 > floor {
+                (whole.max(1e-12), false)
+            } else if curved.is_empty() {
+                (none, true)
+            } else {
+                (pick(curved).max(1e-12), true)
+            }
+        };
+        let (k_range, k_curved) = over(ks, ks_curved, 1e-8 / (r * r), 1.0 / (r * r));
+        let (h_range, h_curved) = over(hs, hs_curved, 1e-4 / r, 1.0 / r);
+        let curvature_range = [k_range, h_range, principal_range];
+        let curvature_over_curved_part = [k_curved, h_curved, true];
         Self {
             surfaces,
             vertices,
@@ -753,6 +782,7 @@ impl PreparedNurbs {
             draft_tolerance_deg: DEFAULT_DRAFT_TOLERANCE_DEG,
             tool_radius: 0.0,
             curvature_range,
+            curvature_over_curved_part,
             background: Vec3::new(0.06, 0.07, 0.09),
             prepared_kernels: true,
             boundaries: false,

@@ -737,6 +737,11 @@ fn the_principal_ramp_is_scaled_by_the_curved_part_alone() {
     let ranges = [cyl.domain(), plane.domain()];
     let p = PreparedNurbs::new(vec![cyl, plane.clone()], &ranges, 6);
     assert!((p.curvature_range[2] - 2.0).abs() < 1e-3, "{:?}", p.curvature_range);
+    // the mean curvature too (H = ½ on the cylinder); the Gaussian is zero
+    // everywhere: 1 / the bounding radius squared
+    assert!((p.curvature_range[1] - 1.0).abs() < 1e-3, "{:?}", p.curvature_range);
+    assert!((p.curvature_range[0] * p.bounds.1 * p.bounds.1 - 1.0).abs() < 0.05, "{:?}", p.curvature_range);
+    assert_eq!(p.curvature_over_curved_part, [true, true, true]);
     // a model without curvature: 1 / its bounding radius, not a scale of nothing
     let p = PreparedNurbs::new(vec![plane.clone()], &[plane.domain()], 6);
     assert!((p.curvature_range[2] * p.bounds.1 - 1.0).abs() < 0.05, "{:?} r {}", p.curvature_range, p.bounds.1);

@@ -103,29 +103,54 @@ fn loops(f: &Face) -> Vec<Vec<[f64; 2]>> {
     vec![vec![[u0, v0], [u1, v0], [u1, v1], [u0, v1], [u0, v0]]]
 }
 
+/// Samples of the segment `a`–`b` of a loop at `spacing`: enough equal
+/// parameter steps for its length, estimated from 8 chords.
+fn segment_samples(s: &NurbsSurface, a: [f64; 2], b: [f64; 2], spacing: f64) -> usize {
+    let at = |t: f64| [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
+    let mut len = 0.0;
+    let mut prev = s.point(a[0], a[1]);
+    for k in 1..=8 {
+        let q = at(k as f64 / 8.0);
+        let p = s.point(q[0], q[1]);
+        len += v3::len(v3::sub(p, prev));
+        prev = p;
+    }
+    ((len / spacing).ceil() as usize).clamp(1, MAX_SEGMENT_SAMPLES)
+}
+
+/// Most samples taken along one segment of a loop.
+const MAX_SEGMENT_SAMPLES: usize = 100_000;
+
 /// Samples a closed loop at most `spacing` apart in model space (each
 /// segment cut into equal parameter steps, enough for its longest chord).
 fn sample_loop(s: &NurbsSurface, lp: &[[f64; 2]], spacing: f64) -> Vec<Sample> {
     let mut out = Vec::new();
     for w in lp.windows(2) {
         let (a, b) = (w[0], w[1]);
-        // estimate the segment's length from 8 chords
-        let at = |t: f64| [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
-        let mut len = 0.0;
-        let mut prev = s.point(a[0], a[1]);
-        for k in 1..=8 {
-            let q = at(k as f64 / 8.0);
-            let p = s.point(q[0], q[1]);
-            len += v3::len(v3::sub(p, prev));
-            prev = p;
-        }
-        let n = ((len / spacing).ceil() as usize).clamp(1, 100_000);
+        let n = segment_samples(s, a, b, spacing);
         for k in 0..n {
-            let uv = at(k as f64 / n as f64);
+            let t = k as f64 / n as f64;
+            let uv = [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
             out.push(Sample { uv, p: s.point(uv[0], uv[1]) });
         }
     }
     out
+}
+
+/// The boundary samples [`check`] takes at `spacing`, counted before any is
+/// taken (the work and memory of a check grow with it: a caller bounds it).
+pub fn sample_count(faces: &[Face], spacing: f64) -> u64 {
+    use rayon::prelude::*;
+    let spacing = spacing.max(1e-12);
+    faces
+        .par_iter()
+        .map(|f| {
+            loops(f)
+                .iter()
+                .flat_map(|l| l.windows(2).map(|w| segment_samples(f.surface, w[0], w[1], spacing) as u64))
+                .sum::<u64>()
+        })
+        .sum()
 }
 
 /// Closest point of `s` over `range` to `p` by Newton on |S − p|², from
@@ -204,6 +229,12 @@ fn across_seam(f: &Face, a: [f64; 2], b: [f64; 2]) -> bool {
 /// Finds the edges of `faces` and measures each. `size` is the model's size
 /// (bounding-box diagonal), the scale of the relative G2 floor.
 pub fn check(faces: &[Face], opts: &CheckOptions, size: f64) -> Vec<Edge> {
+    check_with_progress(faces, opts, size, &|| {})
+}
+
+/// [`check`], calling `face_done` as each face's boundary has been measured
+/// (from any thread), for a progress display.
+pub fn check_with_progress(faces: &[Face], opts: &CheckOptions, size: f64, face_done: &(dyn Fn() + Sync)) -> Vec<Edge> {
     use rayon::prelude::*;
     use std::collections::HashMap;
     let spacing = opts.spacing.max(1e-12);
@@ -298,10 +329,33 @@ pub fn check(faces: &[Face], opts: &CheckOptions, size: f64) -> Vec<Edge> {
                         }
                     }
                 }
-                // runs of one neighbour along the loop
                 if n == 0 {
                     continue;
                 }
+                // where two faces are equally near along one stretch (parts
+                // of an assembly touching, faces lying on each other), the
+                // nearest of them flips with rounding from sample to sample:
+                // a sample keeps the face of the sample before it while that
+                // face is as near as the nearest (within a thousandth of the
+                // matching radius), so that the edges found do not depend on
+                // the spacing (walked from a change of face, twice round so
+                // that the wrap settles)
+                let tie = 1e-3 * opts.match_radius;
+                let change = (0..n).find(|&i| matched[i].map(|m| m.0) != matched[(i + n - 1) % n].map(|m| m.0));
+                if let Some(c) = change {
+                    for i in 1..2 * n {
+                        let j = (c + i) % n;
+                        let before = matched[(j + n - 1) % n].map(|m| m.0);
+                        if before.is_some()
+                            && before != matched[j].map(|m| m.0)
+                            && let Some(m) = all[j].iter().find(|m| Some(m.0) == before)
+                            && all[j].first().is_some_and(|best| m.2 <= best.2 + tie)
+                        {
+                            matched[j] = Some(*m);
+                        }
+                    }
+                }
+                // runs of one neighbour along the loop
                 let id = |m: &Option<(usize, [f64; 2], f64)>| m.map(|x| x.0);
                 // start a run where the neighbour changes (a loop with one
                 // neighbour throughout is one run)
@@ -356,6 +410,7 @@ pub fn check(faces: &[Face], opts: &CheckOptions, size: f64) -> Vec<Edge> {
                     edges.push(edge);
                 }
             }
+            face_done();
             edges
         })
         .collect();
@@ -428,6 +483,52 @@ mod tests {
         assert!(e.g1_deg.value < 1e-4, "tangent: {}", e.g1_deg.value);
         // curvature 0 against 1: a relative jump of 1
         assert!((e.g2_rel.value - 1.0).abs() < 1e-6, "g2 {}", e.g2_rel.value);
+    }
+
+    #[test]
+    fn faces_equally_near_make_one_edge_at_any_spacing() {
+        // the base square's side x = 1 is met by two faces at once, each the
+        // nearer along part of it (cubic sides along y: A: z = 3a·t(1−t)(1−2t),
+        // B: z = 3b·t(1−t) with b = a/2, so A is the nearer only for t in
+        // (¼, ¾)); with a far below the matching radius both lie on the
+        // edge (faces touching in an assembly): one edge at every spacing;
+        // with a larger, A and B are told apart the same way at every spacing
+        let base = quad([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]]);
+        let wavy = |z: [f64; 4]| {
+            let mut pts = Vec::new();
+            for j in 0..4 {
+                let y = j as f64 / 3.0;
+                pts.push([1.0, y, z[j], 1.0]);
+                pts.push([2.0, y, z[j], 1.0]);
+            }
+            let k = vec![0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0];
+            NurbsSurface::new(1, 3, 2, 4, vec![0.0, 0.0, 1.0, 1.0], k, pts).unwrap()
+        };
+        for (a, want) in [(1e-6, 1), (0.05, 3)] {
+            let fa = wavy([0.0, a, -a, 0.0]);
+            let fb = wavy([0.0, a / 2.0, a / 2.0, 0.0]);
+            let surfaces = [base.clone(), fa, fb];
+            let faces: Vec<Face> =
+                surfaces.iter().map(|s| Face { surface: s, range: s.domain(), loops: &[] }).collect();
+            for spacing in [0.05, 0.02, 0.005] {
+                let edges = check(&faces, &CheckOptions { spacing, match_radius: 0.02 }, 3.0);
+                let shared: Vec<_> = edges.iter().filter(|e| e.face == 0 && e.neighbour.is_some()).collect();
+                assert_eq!(shared.len(), want, "a = {a}, spacing {spacing}: {shared:#?}");
+                let length: f64 = shared.iter().map(|e| e.length).sum();
+                assert!((length - 1.0).abs() < 0.1, "a = {a}, spacing {spacing}: shared length {length}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_sample_count_is_known_before_sampling() {
+        // a unit square's perimeter at spacing 0.01: 4 sides of 100 samples
+        let sq = quad([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]]);
+        let faces = [Face { surface: &sq, range: sq.domain(), loops: &[] }];
+        assert_eq!(sample_count(&faces, 0.01), 400);
+        assert_eq!(sample_count(&faces, 0.3), 16);
+        let taken: usize = loops(&faces[0]).iter().map(|l| sample_loop(&sq, l, 0.01).len()).sum();
+        assert_eq!(taken, 400);
     }
 
     #[test]
