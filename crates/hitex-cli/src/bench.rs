@@ -332,9 +332,16 @@ pub fn run_case_fns(
 
 /// Prints a report as a table.
 pub fn print_table(r: &Report) {
-    println!(
+    say!(
         "{:<22} {:<4} {:<44} {:>10} {:>8} {:>8} {:>8} {:>7}",
-        "case", "be", "adapter", "size", "ms", "fps", "Mpix/s", "simd"
+        "case",
+        "be",
+        "adapter",
+        "size",
+        "ms",
+        "fps",
+        "Mpix/s",
+        "simd"
     );
     let levels: Vec<&str> = {
         let mut v: Vec<&str> = r.rows.iter().filter(|x| x.backend == "cpu").map(|x| x.simd.as_str()).collect();
@@ -344,7 +351,7 @@ pub fn print_table(r: &Report) {
         v
     };
     for row in &r.rows {
-        println!(
+        say!(
             "{:<22} {:<4} {:<44} {:>10} {:>8.2} {:>8.1} {:>8.1} {:>7}",
             row.case,
             row.backend,
@@ -357,7 +364,7 @@ pub fn print_table(r: &Report) {
         );
     }
     for q in &r.ratios {
-        println!(
+        say!(
             "{:<22} gpu/cpu median ratio {:.2} ({})",
             q.case,
             q.gpu_over_cpu,
@@ -365,7 +372,7 @@ pub fn print_table(r: &Report) {
         );
     }
     for p in &r.parity {
-        println!("{:<22} cpu vs gpu first frame: mean |Δ| {:.3}, p99 {} (8-bit steps)", p.case, p.mean_abs, p.p99);
+        say!("{:<22} cpu vs gpu first frame: mean |Δ| {:.3}, p99 {} (8-bit steps)", p.case, p.mean_abs, p.p99);
     }
     if levels.len() > 1 {
         print_scaling(r, &levels);
@@ -376,11 +383,11 @@ pub fn print_table(r: &Report) {
 /// the widest level's speed-up over the narrowest, and whether every level
 /// rendered the same image.
 fn print_scaling(r: &Report, levels: &[&str]) {
-    print!("{:<22}", "cpu ms by SIMD level");
+    say_part!("{:<22}", "cpu ms by SIMD level");
     for l in levels {
-        print!(" {l:>9}");
+        say_part!(" {l:>9}");
     }
-    println!("  {:>9}  same image", "speed-up");
+    say!("  {:>9}  same image", "speed-up");
     let mut cases: Vec<&str> = r.rows.iter().map(|x| x.case.as_str()).collect();
     cases.dedup();
     for case in cases {
@@ -388,11 +395,11 @@ fn print_scaling(r: &Report, levels: &[&str]) {
             .iter()
             .map(|l| r.rows.iter().find(|x| x.case == case && x.backend == "cpu" && x.simd == *l))
             .collect();
-        print!("{case:<22}");
+        say_part!("{case:<22}");
         for m in &ms {
             match m {
-                Some(row) => print!(" {:>9.2}", row.ms_median),
-                None => print!(" {:>9}", "-"),
+                Some(row) => say_part!(" {:>9.2}", row.ms_median),
+                None => say_part!(" {:>9}", "-"),
             }
         }
         let speedup = match (ms.first().copied().flatten(), ms.last().copied().flatten()) {
@@ -400,7 +407,7 @@ fn print_scaling(r: &Report, levels: &[&str]) {
             _ => "-".into(),
         };
         let same = ms.iter().flatten().all(|x| x.same_image != Some(false));
-        println!("  {speedup:>9}  {}", if same { "yes" } else { "NO" });
+        say!("  {speedup:>9}  {}", if same { "yes" } else { "NO" });
     }
 }
 
@@ -453,7 +460,7 @@ pub fn texture(args: TextureArgs) -> Result<(), CliError> {
             .collect();
     let cases = args.cases.select(cases)?;
     if !args.json {
-        println!(
+        say!(
             "hitex bench texture: showcase scene ({} triangles), {}x{}, {} frames per case orbiting once; median of each",
             base.triangle_count(),
             args.size.0,
@@ -464,14 +471,14 @@ pub fn texture(args: TextureArgs) -> Result<(), CliError> {
     let report = run_cases("texture", &cases, args.frames, args.size, args.backends, &levels, args.json)?;
     if args.json {
         let text = serde_json::to_string_pretty(&report).map_err(|e| CliError::Internal(e.to_string()))?;
-        println!("{text}");
+        say!("{text}");
     } else {
         print_table(&report);
     }
     if let Some(p) = &args.chart {
         write_chart(&report, p)?;
         if !args.json {
-            println!("chart: {}", p.display());
+            say!("chart: {}", p.display());
         }
     }
     Ok(())
@@ -561,15 +568,17 @@ pub fn nurbs(args: NurbsArgs) -> Result<(), CliError> {
         .map(|(n, p)| (n.clone(), orbit_case(p.camera, move |camera| Job::Nurbs { model: p, camera })))
         .collect();
     if !args.json {
-        println!(
+        say!(
             "hitex bench nurbs: per-pixel exact evaluation, {}x{}, {} frames per case turning once; paper (GeForce 7900 GTX, 2006): surface 212 fps, teapot 201 fps, spray 126 fps; '-generic' = any-degree loops instead of the prepared bicubic kernels",
-            args.size.0, args.size.1, args.frames
+            args.size.0,
+            args.size.1,
+            args.frames
         );
     }
     let report = run_case_fns("nurbs", &fns, args.frames, args.size, args.backends, &levels, args.json)?;
     if args.json {
         let text = serde_json::to_string_pretty(&report).map_err(|e| CliError::Internal(e.to_string()))?;
-        println!("{text}");
+        say!("{text}");
     } else {
         print_table(&report);
     }

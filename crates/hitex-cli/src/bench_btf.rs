@@ -181,7 +181,7 @@ pub fn btf(args: BtfArgs) -> Result<(), CliError> {
     let synth_s = t.elapsed().as_secs_f64();
     let index = index_with_progress(&btf, 128, 1, 3, quiet)?;
     if !quiet {
-        println!(
+        say!(
             "hitex bench btf: {} BTF, {} images of {}x{} texels ({:.0} MiB RGBA8, made in {synth_s:.1} s), 128x128 index, a {}x{} quad in a {}x{} frame, light turning once over {} frames",
             material.name(),
             btf.images(),
@@ -194,7 +194,7 @@ pub fn btf(args: BtfArgs) -> Result<(), CliError> {
             args.size.1,
             args.frames
         );
-        println!(
+        say!(
             "paper (GeForce 6800 Ultra, 2005): (f) fastest; BC1 as fast or faster; SNR (a),(b) 37.2, (c),(d) 35.6, (e),(f) 33.9 dB"
         );
     }
@@ -299,7 +299,7 @@ pub fn btf(args: BtfArgs) -> Result<(), CliError> {
     };
     if args.json {
         let text = serde_json::to_string_pretty(&report).map_err(|e| CliError::Internal(e.to_string()))?;
-        println!("{text}");
+        say!("{text}");
     } else {
         print_report(&report);
     }
@@ -341,16 +341,16 @@ fn compare_encoders(btf: &Btf) -> Result<Vec<EncoderRow>, CliError> {
 
 fn print_report(r: &BtfReport) {
     print_table(&r.timing);
-    println!();
-    println!("BC1 quality per layout (PSNR of the decoded codebook, RGB, ISPC encoder):");
-    println!("{:<16} {:>9} {:>9} {:>12}", "case", "dB", "paper dB", "encode ms");
+    say!();
+    say!("BC1 quality per layout (PSNR of the decoded codebook, RGB, ISPC encoder):");
+    say!("{:<16} {:>9} {:>9} {:>12}", "case", "dB", "paper dB", "encode ms");
     for s in &r.snr {
-        println!("{:<16} {:>9.2} {:>9.1} {:>12.0}", s.case, s.psnr_db, s.paper_db, s.encode_ms);
+        say!("{:<16} {:>9.2} {:>9.1} {:>12.0}", s.case, s.psnr_db, s.paper_db, s.encode_ms);
     }
-    println!();
-    println!("BC1 encoders on layout (a):");
+    say!();
+    say!("BC1 encoders on layout (a):");
     for e in &r.encoders {
-        println!(
+        say!(
             "  {:<18} {:>9} texels {:>9.0} ms {:>8.1} Mtexel/s {:>7.2} dB",
             e.encoder,
             e.texels,
@@ -359,14 +359,22 @@ fn print_report(r: &BtfReport) {
             e.psnr_db
         );
     }
-    println!();
-    println!("texture-cache model ({}), first frame:", r.cache);
-    println!(
+    say!();
+    say!("texture-cache model ({}), first frame:", r.cache);
+    say!(
         "{:<16} {:>8} {:>10} {:>10} {:>8} {:>10} {:>10} {:>11} {:>10}",
-        "case", "pixels", "reads/px", "texels/px", "hit %", "bytes/px", "bytes/read", "bytes/texel", "load eff."
+        "case",
+        "pixels",
+        "reads/px",
+        "texels/px",
+        "hit %",
+        "bytes/px",
+        "bytes/read",
+        "bytes/texel",
+        "load eff."
     );
     for c in &r.cache_model {
-        println!(
+        say!(
             "{:<16} {:>8} {:>10.1} {:>10.1} {:>8.2} {:>10.1} {:>10.2} {:>11.3} {:>10.2}",
             c.case,
             c.pixels,

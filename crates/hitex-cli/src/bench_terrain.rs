@@ -77,7 +77,7 @@ pub struct TerrainReport {
 pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
     let levels = a.simd.levels()?;
     if a.source < TILE || !a.source.is_power_of_two() || a.source > 16384 {
-        return Err(CliError::Input(format!("--source {} must be a power of two in 256..=16384", a.source)));
+        return Err(CliError::Input(format!("--source {} must be a power of two in 256 to 16384", a.source)));
     }
     let (w, h) = a.size;
     let dir = std::env::temp_dir().join(format!("hitex-bench-terrain-{}", std::process::id()));
@@ -86,7 +86,7 @@ pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
     let t = Instant::now();
     build_store(&src, &meta, &dir, BuildOptions::default(), &|_, _| {})?;
     if !a.json {
-        println!(
+        say!(
             "hitex bench terrain: {} ({} maps, built in {:.1} s), {w}x{h}, an orbit of {} frames at 800 m, pitch 30° below the horizon, FOV 45°",
             src.describe(),
             meta.total_tiles(),
@@ -193,23 +193,33 @@ pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
     };
     if a.json {
         let text = serde_json::to_string_pretty(&report).map_err(|e| CliError::Internal(e.to_string()))?;
-        println!("{text}");
+        say!("{text}");
     } else {
         print_table(&report.timing);
-        println!(
+        say!(
             "resident: at most {} maps ({:.1} MiB) of the store's {}",
             report.resident_maps,
             report.resident_bytes as f64 / 1048576.0,
             report.store_maps
         );
-        println!(
+        say!(
             "{:<10} {:>10} {:>8} {:>15} {:>12} {:>11}",
-            "case", "PSNR dB", "SSIM", "bank conflicts", "accesses", "mean level"
+            "case",
+            "PSNR dB",
+            "SSIM",
+            "bank conflicts",
+            "accesses",
+            "mean level"
         );
         for s in &report.spans {
-            println!(
+            say!(
                 "{:<10} {:>10.2} {:>8.4} {:>15} {:>12} {:>11.2}",
-                s.case, s.psnr_db, s.ssim, s.bank_conflicts, s.accesses, s.mean_level
+                s.case,
+                s.psnr_db,
+                s.ssim,
+                s.bank_conflicts,
+                s.accesses,
+                s.mean_level
             );
         }
     }

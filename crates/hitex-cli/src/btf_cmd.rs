@@ -32,7 +32,7 @@ pub enum BtfCommand {
         /// Polar angles in degrees, comma-separated (default: 0,10,…,70).
         #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
         theta: Option<Vec<f32>>,
-        /// Azimuth count (default 16).
+        /// Azimuth count.
         #[arg(long, default_value_t = 16)]
         phi: usize,
         /// Rays per texel side.
@@ -207,7 +207,7 @@ pub(crate) fn bar(len: u64, what: &str) -> Progress {
 
 fn grid_from(theta: Option<Vec<f32>>, phi: usize) -> Result<AngularGrid, CliError> {
     match theta {
-        Some(t) => AngularGrid::new(t, phi).map_err(|e| CliError::Input(e.to_string())),
+        Some(t) => AngularGrid::new(t, phi).map_err(|e| CliError::Input(format!("--theta/--phi: {e}"))),
         None if phi == 16 => Ok(AngularGrid::paper()),
         None => {
             AngularGrid::new((0..8).map(|i| i as f32 * 10.0).collect(), phi).map_err(|e| CliError::Input(e.to_string()))
@@ -223,6 +223,33 @@ pub fn synth_with_progress(material: Material, opts: &SynthOptions, quiet: bool)
         synthesize(material, opts, &|done| pb.set_position(done as u64)).map_err(|e| CliError::Input(e.to_string()))?;
     pb.finish_and_clear();
     Ok(btf)
+}
+
+/// `mesh` with texture coordinates projected onto the plane of its two
+/// longest bounding-box extents (one unit of texture per longest extent).
+fn planar_uvs(mesh: &hitex_core::scene::Mesh) -> Result<hitex_core::scene::Mesh, CliError> {
+    let (mut lo, mut hi) = (glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY));
+    for p in &mesh.positions {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    let ext = hi - lo;
+    let mut axes = [0usize, 1, 2];
+    axes.sort_by(|&a, &b| ext[b].total_cmp(&ext[a]));
+    let scale = 1.0 / ext[axes[0]].max(f32::MIN_POSITIVE);
+    let uvs = mesh
+        .positions
+        .iter()
+        .map(|p| glam::Vec2::new((p[axes[0]] - lo[axes[0]]) * scale, (p[axes[1]] - lo[axes[1]]) * scale))
+        .collect();
+    hitex_core::scene::Mesh::new(
+        &mesh.name,
+        mesh.positions.clone(),
+        Some(mesh.normals.clone()),
+        Some(uvs),
+        mesh.indices.clone(),
+    )
+    .map_err(|e| CliError::Input(e.to_string()))
 }
 
 /// A `.hbtf` path, or a material name synthesised with the paper's defaults.
@@ -314,6 +341,18 @@ pub fn surface_for(on: &str, repeats: f32) -> Result<BtfSurface, CliError> {
             let meshes = hitex_io::load_obj(Path::new(path))?;
             let mut s = BtfSurface::default();
             for m in meshes {
+                // a mesh without texture coordinates would show one texel:
+                // it gets a planar projection, and the user is told
+                let m = if m.uvs.iter().all(|t| *t == m.uvs[0]) {
+                    eprintln!(
+                        "hitex: warning: {}: no texture coordinates (vt): the BTF is projected onto the plane of \
+                         the mesh's two longest extents",
+                        m.name
+                    );
+                    planar_uvs(&m)?
+                } else {
+                    m
+                };
                 let part = BtfSurface::from_mesh(&m, repeats);
                 let base = s.vertices.len() as u32;
                 s.vertices.extend(part.vertices);
@@ -383,14 +422,14 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 CliError::Input(format!("unknown material '{material}': use one of {}", names.join(", ")))
             })?;
             if !(1..=1024).contains(&size) {
-                return Err(CliError::Input(format!("--size {size} must be in 1..=1024 texels")));
+                return Err(CliError::Input(format!("--size {size} must be in 1 to 1024 texels")));
             }
             if !(1..=256).contains(&phi) {
-                return Err(CliError::Input(format!("--phi {phi} must be in 1..=256 azimuths")));
+                return Err(CliError::Input(format!("--phi {phi} must be in 1 to 256 azimuths")));
             }
             if !(1..=16).contains(&supersample) {
                 return Err(CliError::Input(format!(
-                    "--supersample {supersample} must be in 1..=16 rays per texel side"
+                    "--supersample {supersample} must be in 1 to 16 rays per texel side"
                 )));
             }
             if !output.extension().is_some_and(|e| e.eq_ignore_ascii_case("hbtf")) {
@@ -400,12 +439,22 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 )));
             }
             let grid = grid_from(theta, phi)?;
+            // every (view, light) image of size² texels: bounded before any work
+            let d = grid.directions() as u64;
+            let limit = hitex_core::btf::dataset::MAX_BTF_TEXELS;
+            if d * d * size as u64 * size as u64 > limit {
+                let most = ((limit / (d * d)) as f64).sqrt().floor() as u64;
+                return Err(CliError::Input(format!(
+                    "--size {size}: {d}×{d} (view, light) images of {size}x{size} texels exceed the limit of \
+                     {limit} texels; at most --size {most} with this grid (fewer --theta or --phi allow more)"
+                )));
+            }
             let opts = SynthOptions { grid, size, supersample, ..Default::default() };
             let t = Instant::now();
             let btf = synth_with_progress(m, &opts, false)?;
             let secs = t.elapsed().as_secs_f64();
             hitex_io::btf_file::write_hbtf(&output, &btf)?;
-            println!(
+            say!(
                 "wrote {}: {} {} images of {}x{} texels ({:.1} MiB as RGBA8) in {secs:.2} s",
                 output.display(),
                 btf.images(),
@@ -419,19 +468,19 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
         BtfCommand::Info { input } => {
             let btf = load_or_synth(&input, true)?;
             let g = btf.grid();
-            println!("{input}");
-            println!("  sample: {}x{} texels", btf.width(), btf.height());
+            say!("{input}");
+            say!("  sample: {}x{} texels", btf.width(), btf.height());
             match btf.hdr() {
                 Some(h) => {
                     let max = h.half.iter().map(|&v| hitex_core::btf::dataset::half_value(v)).fold(0.0, f32::max);
-                    println!(
+                    say!(
                         "  texels: HDR, linear RGB half floats up to {max}; 8-bit display copy scaled by {:.4}",
                         h.ldr_scale
                     );
                 }
-                None => println!("  texels: 8-bit sRGB"),
+                None => say!("  texels: 8-bit sRGB"),
             }
-            println!(
+            say!(
                 "  grid: θ = {:?}° ({}), φ: {} × {:.2}°; {} view × {} light directions, {} images",
                 g.theta_deg(),
                 g.theta_count(),
@@ -442,21 +491,21 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 btf.images()
             );
             if btf.is_hdr() {
-                println!(
+                say!(
                     "  codebook: {:.1} MiB as RGBA16F (BC1 holds 8-bit colours only)",
                     2.0 * btf.gpu_bytes() as f64 / 1048576.0
                 );
             } else {
-                println!(
+                say!(
                     "  codebook: {:.1} MiB as RGBA8, {:.1} MiB as BC1",
                     btf.gpu_bytes() as f64 / 1048576.0,
                     btf.gpu_bytes() as f64 / 8.0 / 1048576.0
                 );
             }
-            println!("  layouts:");
+            say!("  layouts:");
             for l in Layout::ALL {
                 match hitex_core::btf::Codebook::build(&btf, l) {
-                    Ok(cb) => println!(
+                    Ok(cb) => say!(
                         "    {:<5} (--layout {:<2}) {:>5}x{:<5}x{:<3} texels, tiles {}x{}, {:>3} reads/pixel, {:.1} MiB",
                         l.label(),
                         l.name(),
@@ -468,7 +517,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                         l.codebook_reads(),
                         (if cb.is_hdr() { 8 * cb.half.len() as u64 } else { cb.bytes() }) as f64 / 1048576.0
                     ),
-                    Err(e) => println!("    {:<5} (--layout {:<2}) not possible: {e}", l.label(), l.name()),
+                    Err(e) => say!("    {:<5} (--layout {:<2}) not possible: {e}", l.label(), l.name()),
                 }
             }
             Ok(())
@@ -476,7 +525,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
         BtfCommand::Index { input, size, output, seed, passes } => {
             crate::image_out(&output)?;
             if !(1..=8192).contains(&size) {
-                return Err(CliError::Input(format!("--size {size} must be in 1..=8192 texels")));
+                return Err(CliError::Input(format!("--size {size} must be in 1 to 8192 texels")));
             }
             let btf = load_or_synth(&input, false)?;
             let t = Instant::now();
@@ -491,8 +540,8 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 output.file_stem().and_then(|s| s.to_str()).unwrap_or("index")
             ));
             save(&index_preview(&btf, &map), &preview)?;
-            println!(
-                "wrote {} ({size}x{size}, 16-bit sample coordinates: dark in an image viewer, see the preview) in {secs:.2} s; neighbour error (feature distance to the coherent continuation): interior {:.4}, across the wrap edges {:.4} (ratio {:.2}; ≤ 1 means the tiling seam is invisible); preview {}",
+            say!(
+                "wrote {} ({size}x{size}, 16-bit sample coordinates: dark in an image viewer, see the preview) in {secs:.2} s; seam score (mean feature distance to the coherent continuation): interior {:.4}, across the wrap edges {:.4} (ratio {:.2}; ≤ 1 means the tiling seam is invisible); preview {}",
                 output.display(),
                 q.interior_error,
                 q.seam_error,
@@ -502,6 +551,15 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             Ok(())
         }
         BtfCommand::Import { input, output, size, theta, phi } => {
+            crate::file_output(&output, &["hbtf"], "an imported BTF")?;
+            if let Some(s) = size
+                && !(1..=hitex_core::btf::dataset::MAX_BTF_SIDE).contains(&s)
+            {
+                return Err(CliError::Input(format!(
+                    "--size {s} must be in 1 to {} texels",
+                    hitex_core::btf::dataset::MAX_BTF_SIDE
+                )));
+            }
             let grid = match (theta, phi) {
                 (None, None) => None,
                 (t, p) => Some(grid_from(t, p.unwrap_or(16))?),
@@ -514,7 +572,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             })?;
             pb.finish_and_clear();
             hitex_io::btf_file::write_hbtf(&output, &btf)?;
-            println!(
+            say!(
                 "wrote {}: {} images read ({} view × {} light directions), {}x{} texels, grid {}×{}{}",
                 output.display(),
                 report.images,
@@ -526,14 +584,27 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 btf.grid().phi_count(),
                 if report.resampled { format!("; {}", report.method) } else { String::new() }
             );
+            // a set far sparser than its grid is filled by resampling: said, not hidden
+            let d = btf.grid().directions();
+            for (what, n) in [("view", report.view_dirs), ("light", report.light_dirs)] {
+                if report.resampled && n * 4 < d {
+                    eprintln!(
+                        "hitex: warning: {}: the images hold {} but the grid has {d}: \
+                         the others are resampled from {}; give --theta/--phi for the set's own grid",
+                        input.display(),
+                        crate::count(n, &format!("{what} direction"), &format!("{what} directions")),
+                        if n == 1 { "that one" } else { "those" }
+                    );
+                }
+            }
             if let Some(h) = btf.hdr() {
-                println!(
+                say!(
                     "  HDR: OpenEXR values kept as half floats (version 2 file); the 8-bit display copy is scaled by {:.4}",
                     h.ldr_scale
                 );
             }
             if report.clamped > 0 {
-                println!(
+                say!(
                     "  clamped: {} EXR values were NaN, infinite, negative or outside the sRGB gamut, set into [0, 65504] \
                      (first in {})",
                     report.clamped,
@@ -545,17 +616,13 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             {
                 if !list.is_empty() {
                     let shown: Vec<_> = list.iter().take(8).cloned().collect();
-                    println!(
-                        "  {what}: {} ({}{})",
-                        list.len(),
-                        shown.join(", "),
-                        if list.len() > 8 { ", …" } else { "" }
-                    );
+                    say!("  {what}: {} ({}{})", list.len(), shown.join(", "), if list.len() > 8 { ", …" } else { "" });
                 }
             }
             Ok(())
         }
         BtfCommand::Export { input, output, convention, format } => {
+            crate::folder_output(&output, "btf export (an image set)")?;
             let btf = load_or_synth(&input.to_string_lossy(), false)?;
             let conv = match convention {
                 ConventionArg::Ubo => hitex_io::btf_images::Convention::Ubo,
@@ -590,7 +657,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 (hitex_io::btf_images::SetFormat::Exr, Some(_)) => "OpenEXR, the half-float values exactly".into(),
                 (hitex_io::btf_images::SetFormat::Exr, None) => "OpenEXR, the 8-bit texels decoded to linear".into(),
             };
-            println!("wrote {n} images to {} ({what})", output.display());
+            say!("wrote {n} images to {} ({what})", output.display());
             Ok(())
         }
         BtfCommand::Render {
@@ -680,7 +747,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             } else {
                 String::new()
             };
-            println!(
+            say!(
                 "wrote {} ({}x{}, layout {}{}{tone}{mip_note}, {} codebook reads per pixel, {}) in {ms:.1} ms (+{prep_ms:.0} ms layout{})",
                 output.display(),
                 size.0,

@@ -211,7 +211,7 @@ fn terrain_showcase(
     hitex_io::write_atomic(&dem, OLINDA_DEM)?;
     hitex_io::write_atomic(&image, OLINDA_IMAGE)?;
     let store = dir.join("store");
-    println!("  terrain: building the Olinda GST store (Landsat 7 bands 3,2,1 + DEM) in {}", store.display());
+    say!("  terrain: building the Olinda GST store (Landsat 7 bands 3,2,1 + DEM) in {}", store.display());
     build(BuildArgs {
         image: Some(image),
         bands: "3,2,1".into(),
@@ -284,7 +284,7 @@ fn terrain_showcase(
 pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(), CliError> {
     hitex_io::create_output_dir(out)?;
     let mut r = open_renderer(backend)?;
-    println!("hitex demo: rendering with {}", r.name());
+    say!("hitex demo: rendering with {}", r.name());
     let base = showcase_scene();
     let mut total = 0.0;
     let mut images = 0;
@@ -299,7 +299,7 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
         save(f, &path)?;
         total += ms;
         images += 1;
-        println!("  {:<28} {:>5}x{:<5} {ms:>8.1} ms  {what}", path.display(), f.width, f.height);
+        say!("  {:<28} {:>5}x{:<5} {ms:>8.1} ms  {what}", path.display(), f.width, f.height);
         Ok(())
     };
 
@@ -457,6 +457,6 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
     // 14–15. Terrain (seed 001): a flight through the resident-map cache, span-parallel mapping
     terrain_showcase(out, backend, w, h, &mut report)?;
 
-    println!("hitex demo: {images} images in {}, {total:.0} ms of rendering", out.display());
+    say!("hitex demo: {images} images in {}, {total:.0} ms of rendering", out.display());
     Ok(())
 }

@@ -1,13 +1,25 @@
 //! `hitex`: the command-line tool.
 
-/// `println!` for commands whose product is files (flights, span studies):
-/// once [`keep_going_on_closed_stdout`] has run, a closed stdout (`| head`)
-/// loses the remaining lines but not the files.
+/// `println!` for every line the tool prints on stdout: a failed write
+/// (a full disk, a closed descriptor) is remembered, not a panic, and ends
+/// the run with exit 1 and one line ([`stdout_status`]); a reader that went
+/// away (`| head`) ends it quietly (SIGPIPE), or, once
+/// [`keep_going_on_closed_stdout`] has run, loses the remaining lines but
+/// not the files being written.
 macro_rules! say {
-    ($($t:tt)*) => {{
-        use std::io::Write as _;
-        let _ = writeln!(std::io::stdout(), $($t)*);
-    }};
+    () => {
+        $crate::write_stdout(format_args!("\n"))
+    };
+    ($($t:tt)*) => {
+        $crate::write_stdout(format_args!("{}\n", format_args!($($t)*)))
+    };
+}
+
+/// `print!` with [`say!`]'s handling of failed writes.
+macro_rules! say_part {
+    ($($t:tt)*) => {
+        $crate::write_stdout(format_args!($($t)*))
+    };
 }
 
 mod bench;
@@ -75,7 +87,7 @@ enum Command {
         #[arg(long, value_enum)]
         mode: Option<Mode>,
     },
-    /// Exact per-pixel NURBS surfaces: render, info, eval.
+    /// Exact per-pixel NURBS surfaces: render, info, eval, export, check, deviation.
     Nurbs {
         #[command(subcommand)]
         which: nurbs_cmd::NurbsCommand,
@@ -176,6 +188,9 @@ pub enum CliError {
     Internal(String),
     /// A check ran and found what it was asked to refuse (exit 1).
     Check(String),
+    /// What the command needs is missing from this machine (a display, a
+    /// GPU): neither the input's fault nor an internal one (exit 1).
+    Unavailable(String),
 }
 
 impl From<hitex_io::IoError> for CliError {
@@ -280,7 +295,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
     match cli.command {
         Command::Demo { out, backend, size, print_scene } => {
             if print_scene {
-                print!("{}", hitex_core::scene::SHOWCASE_TOML);
+                say_part!("{}", hitex_core::scene::SHOWCASE_TOML);
                 return Ok(());
             }
             demo::run(&out, backend.into(), size)
@@ -309,7 +324,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
             save(&frame, &output)?;
             let patches =
                 prepared.nurbs.as_ref().map_or(String::new(), |n| format!(", {} NURBS patches", n.patch_count()));
-            println!(
+            say!(
                 "wrote {} ({w}x{h}, {} triangles{patches}, {}) in {ms:.1} ms",
                 output.display(),
                 prepared.triangle_count(),
@@ -328,11 +343,11 @@ fn run(cli: Cli) -> Result<(), CliError> {
                 .into(),
         )),
         Command::Info => {
-            println!("hitex {}", env!("CARGO_PKG_VERSION"));
+            say!("hitex {}", env!("CARGO_PKG_VERSION"));
             let simd = hitex_render::cpu::simd::level();
             let levels: Vec<&str> =
                 hitex_render::cpu::simd::SimdLevel::available_levels().iter().map(|l| l.name()).collect();
-            println!(
+            say!(
                 "cpu backend: {} threads, SIMD {simd} ({} f32 lanes per instruction; this processor runs {}; HITEX_SIMD forces one)",
                 rayon_threads(),
                 simd.width(),
@@ -340,11 +355,11 @@ fn run(cli: Cli) -> Result<(), CliError> {
             );
             let textured = hitex_render::cpu::simd::level_at_most(hitex_render::cpu::textured::WIDEST);
             if textured != simd {
-                println!(
+                say!(
                     "  the textured program runs at {textured}: its gathers measured faster at 8 lanes than at 16 (HITEX_SIMD={simd} runs it at {simd})"
                 );
             }
-            print!("{}", hitex_render::adapters_report());
+            say_part!("{}", hitex_render::adapters_report());
             Ok(())
         }
         Command::Bench { which } => match which {
@@ -356,9 +371,78 @@ fn run(cli: Cli) -> Result<(), CliError> {
     }
 }
 
+/// Lets every command and subcommand take values that look like negative numbers.
+fn negatives_are_values(c: clap::Command) -> clap::Command {
+    c.allow_negative_numbers(true).mut_subcommands(negatives_are_values)
+}
+
+/// Extensions that name a file, never a folder.
+const FILE_EXTENSIONS: &[&str] = &[
+    "png", "jpg", "jpeg", "tif", "tiff", "exr", "bmp", "zip", "hbtf", "json", "igs", "iges", "obj", "stp", "step",
+    "toml", "txt", "csv", "npy", "npz",
+];
+
+/// Refuses a folder output (`-o`) named like a file (`x.png`, `set.zip`),
+/// which would otherwise become a folder of that name.
+pub(crate) fn folder_output(path: &Path, what: &str) -> Result<(), CliError> {
+    if let Some(e) = path.extension().and_then(|e| e.to_str())
+        && FILE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str())
+        && !path.is_dir()
+    {
+        return Err(CliError::Input(format!(
+            "-o {}: {what} writes a folder; give a folder name, not a .{e} file",
+            path.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Refuses a file output (`-o`) whose extension is not one of `exts`
+/// (lower case), before any work is done.
+pub(crate) fn file_output(path: &Path, exts: &[&str], what: &str) -> Result<(), CliError> {
+    let ok = path.extension().and_then(|e| e.to_str()).is_some_and(|e| exts.contains(&e.to_ascii_lowercase().as_str()));
+    if ok {
+        return Ok(());
+    }
+    let list: Vec<String> = exts.iter().map(|e| format!(".{e}")).collect();
+    Err(CliError::Input(format!("-o {}: {what} is written as {}", path.display(), list.join(" or "))))
+}
+
 /// `1 patch`, `2 patches`: a count with its noun.
 pub(crate) fn count(n: usize, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
+}
+
+/// The first failed write to stdout other than a closed pipe.
+static STDOUT_ERROR: std::sync::Mutex<Option<std::io::Error>> = std::sync::Mutex::new(None);
+
+/// Writes to stdout for [`say!`]: a failure is kept for [`stdout_status`].
+pub(crate) fn write_stdout(args: std::fmt::Arguments<'_>) {
+    use std::io::Write as _;
+    if let Err(e) = std::io::stdout().lock().write_fmt(args) {
+        note_stdout_error(e);
+    }
+}
+
+fn note_stdout_error(e: std::io::Error) {
+    // a reader that went away (`| head`) is not a failure of the run
+    if e.kind() == std::io::ErrorKind::BrokenPipe {
+        return;
+    }
+    let mut slot = STDOUT_ERROR.lock().unwrap_or_else(|p| p.into_inner());
+    slot.get_or_insert(e);
+}
+
+/// Flushes stdout and returns the first write that failed, if any.
+fn stdout_status() -> Result<(), std::io::Error> {
+    use std::io::Write as _;
+    if let Err(e) = std::io::stdout().lock().flush() {
+        note_stdout_error(e);
+    }
+    match STDOUT_ERROR.lock().unwrap_or_else(|p| p.into_inner()).take() {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
 }
 
 /// Lets a command that writes files run to its end when stdout is closed
@@ -429,12 +513,26 @@ fn main() -> ExitCode {
         unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
     }
     keep_freed_memory();
-    let cli = Cli::parse();
+    // a value such as `-1` is a value of whichever flag takes it (and is
+    // refused by that flag's parser, by name), never an unknown option
+    let cli = negatives_are_values(<Cli as clap::CommandFactory>::command())
+        .try_get_matches()
+        .and_then(|m| <Cli as clap::FromArgMatches>::from_arg_matches(&m))
+        .unwrap_or_else(|e| e.exit());
     if let Err(m) = hitex_render::cpu::simd::level_from_env() {
         eprintln!("hitex: error: {m}");
         return ExitCode::from(2);
     }
-    match run(cli) {
+    let result = run(cli);
+    // what the run printed must have reached stdout: a report lost to a
+    // full disk is a failed run, never a pass
+    if let Err(e) = stdout_status() {
+        eprintln!("hitex: error: cannot write to standard output: {}", plain(&e.to_string()));
+        if result.is_ok() {
+            return ExitCode::from(1);
+        }
+    }
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(CliError::Input(m)) => {
             eprintln!("hitex: error: {}", plain(&m));
@@ -446,6 +544,10 @@ fn main() -> ExitCode {
         }
         Err(CliError::Check(m)) => {
             eprintln!("hitex: check failed: {}", plain(&m));
+            ExitCode::from(1)
+        }
+        Err(CliError::Unavailable(m)) => {
+            eprintln!("hitex: error: {}", plain(&m));
             ExitCode::from(1)
         }
     }

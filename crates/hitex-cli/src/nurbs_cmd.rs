@@ -48,7 +48,7 @@ pub enum NurbsCommand {
     Deviation(DeviationArgs),
     /// Point, partials, normal and curvatures at a parameter.
     Eval {
-        /// Model name or IGES file.
+        /// Model name (`surface`, `teapot`, `spray`) or file (STEP, IGES, OBJ, JSON).
         model: String,
         /// Patch index (0-based, file order).
         #[arg(long, default_value_t = 0)]
@@ -113,7 +113,7 @@ impl From<ModeArg> for NurbsMode {
 /// Arguments of `hitex nurbs render`.
 #[derive(Args)]
 pub struct RenderArgs {
-    /// Model name (`surface`, `teapot`) or IGES file.
+    /// Model name (`surface`, `teapot`, `spray`) or file (STEP, IGES, OBJ, JSON).
     pub model: String,
     /// STEP: largest distance between a trim as drawn and the true edge,
     /// model units (default: 1/10 000 of the model's size).
@@ -205,8 +205,23 @@ fn deviation(a: DeviationArgs) -> Result<(), CliError> {
     let points = hitex_io::points::load_points(&a.points)?;
     let faces: Vec<DistanceFace> = m.surfaces.iter().map(|s| DistanceFace::new(&s.surface, s.range, &s.trim)).collect();
     let t = Instant::now();
-    let found: Vec<(f64, usize)> =
-        points.par_iter().map(|p| nearest_face(&faces, *p).map_or((f64::INFINITY, 0), |(d, i, _)| (d, i))).collect();
+    let bar = crate::progress::Progress::new(
+        points.len() as u64,
+        "deviation",
+        "points",
+        "{prefix:>12} [{bar:30}] {pos}/{len} points {elapsed} (eta {eta})",
+    );
+    // the bar moves by chunks of points, not per point
+    let found: Vec<(f64, usize)> = points
+        .par_chunks(4096)
+        .flat_map_iter(|chunk| {
+            let out: Vec<(f64, usize)> =
+                chunk.iter().map(|p| nearest_face(&faces, *p).map_or((f64::INFINITY, 0), |(d, i, _)| (d, i))).collect();
+            bar.inc(chunk.len() as u64);
+            out
+        })
+        .collect();
+    bar.finish_and_clear();
     let ms = t.elapsed().as_secs_f64() * 1e3;
     let n = found.len() as f64;
     let mean = found.iter().map(|f| f.0).sum::<f64>() / n;
@@ -225,16 +240,11 @@ fn deviation(a: DeviationArgs) -> Result<(), CliError> {
             "distances": found.iter().map(|f| f.0).collect::<Vec<_>>(),
             "faces": found.iter().map(|f| f.1).collect::<Vec<_>>(),
         });
-        println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
+        say!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
     } else {
         let u = if units.is_empty() { String::new() } else { format!(" {units}") };
-        println!(
-            "{}: {} to {} faces ({ms:.0} ms)",
-            m.name,
-            crate::count(found.len(), "point", "points"),
-            m.surfaces.len()
-        );
-        println!(
+        say!("{}: {} to {} faces ({ms:.0} ms)", m.name, crate::count(found.len(), "point", "points"), m.surfaces.len());
+        say!(
             "max {}{u} (point {worst} at {:?}, face {face}), mean {}{u}, RMS {}{u}",
             fmt(max),
             points[worst],
@@ -284,14 +294,24 @@ fn edge_class(e: &hitex_core::nurbs::continuity::Edge, g0: f64, g1: f64, g2: f64
     }
 }
 
+/// Most boundary samples `nurbs check` takes (about 200 bytes each while
+/// the edges are matched).
+const MAX_CHECK_SAMPLES: u64 = 4_000_000;
+
 fn check(a: CheckArgs) -> Result<(), CliError> {
-    use hitex_core::nurbs::continuity::{CheckOptions, Face, check};
+    use hitex_core::nurbs::continuity::{CheckOptions, Face, check_with_progress, sample_count};
     for (name, v) in [("--g0", a.g0), ("--g1", a.g1), ("--g2", a.g2), ("--spacing", a.spacing)] {
         if let Some(x) = v
             && !(x.is_finite() && x > 0.0)
         {
             return Err(CliError::Input(format!("{name} {x} must be finite and positive")));
         }
+    }
+    // normals meet at 180° at most: a larger tolerance would gate nothing
+    if let Some(g1) = a.g1
+        && g1 >= 180.0
+    {
+        return Err(CliError::Input(format!("--g1 {g1} must be below 180 degrees")));
     }
     let m = load(&a.model, a.chord)?;
     for w in &m.warnings {
@@ -316,8 +336,27 @@ fn check(a: CheckArgs) -> Result<(), CliError> {
     let opts = CheckOptions { spacing, match_radius: (2.0 * g0).max(2e-3 * size) };
     let faces: Vec<Face> =
         m.surfaces.iter().map(|s| Face { surface: &s.surface, range: s.range, loops: &s.trim }).collect();
+    // the work grows with the boundary samples: counted and bounded first
+    let samples = sample_count(&faces, spacing);
+    if samples > MAX_CHECK_SAMPLES {
+        let finest = spacing * samples as f64 / MAX_CHECK_SAMPLES as f64;
+        return Err(CliError::Input(format!(
+            "--spacing {}: {} would take {samples} boundary samples (at most {MAX_CHECK_SAMPLES}); \
+             give --spacing {} or more",
+            fmt(spacing),
+            m.name,
+            fmt(finest * 1.01)
+        )));
+    }
     let t = Instant::now();
-    let edges = check(&faces, &opts, size);
+    let bar = crate::progress::Progress::new(
+        faces.len() as u64,
+        "check",
+        "faces",
+        "{prefix:>12} [{bar:30}] {pos}/{len} faces {elapsed}",
+    );
+    let edges = check_with_progress(&faces, &opts, size, &|| bar.inc(1));
+    bar.finish_and_clear();
     let ms = t.elapsed().as_secs_f64() * 1e3;
     let shared: Vec<_> = edges.iter().filter(|e| e.neighbour.is_some()).collect();
     let naked: Vec<_> = edges.iter().filter(|e| e.neighbour.is_none()).collect();
@@ -465,7 +504,13 @@ pub fn mode_legend(f: &mut hitex_render::Frame, p: &PreparedNurbs, user_range: b
         }
         _ => return,
     };
-    hitex_render::legend::diverging_legend(f, range, &[name, units, if user_range { "±RANGE" } else { rule }]);
+    if user_range {
+        hitex_render::legend::diverging_legend(f, range, &[name, units, "±RANGE"]);
+    } else if p.curvature_over_curved_part[p.curvature_slot()] {
+        hitex_render::legend::diverging_legend(f, range, &[name, units, rule, "CURVED PART"]);
+    } else {
+        hitex_render::legend::diverging_legend(f, range, &[name, units, rule]);
+    }
 }
 
 /// Whether `mode` draws a legend (and so a view keeps its strip clear).
@@ -615,12 +660,12 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
         NurbsCommand::Render(a) => {
             for (flag, v) in [("--isophotes", a.bands), ("--stripes", a.stripes)] {
                 if !(1..=1000).contains(&v) {
-                    return Err(CliError::Input(format!("{flag} {v} must be in 1..=1000")));
+                    return Err(CliError::Input(format!("{flag} {v} must be in 1 to 1000")));
                 }
             }
             if !(1..=256).contains(&a.density) {
                 return Err(CliError::Input(format!(
-                    "--density {} must be in 1..=256 (triangle pairs per patch side)",
+                    "--density {} must be in 1 to 256 (triangle pairs per patch side)",
                     a.density
                 )));
             }
@@ -669,7 +714,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             }
             if a.elevate {
                 let n = p.elevate_to_prepared();
-                println!("elevated {n} patches to the nearest prepared degree (3 or 5)");
+                say!("elevated {n} patches to the nearest prepared degree (3 or 5)");
             }
             let up = if a.up == UpAxis::Auto { p.detect_up() } else { a.up };
             p.pull = a.pull.unwrap_or_else(|| up.direction());
@@ -684,7 +729,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             let ms = t.elapsed().as_secs_f64() * 1e3;
             mode_legend(&mut f, &p, a.range.is_some());
             save(&f, &a.output)?;
-            println!(
+            say!(
                 "wrote {} ({}x{}, {}, mode {}, {}) in {ms:.1} ms",
                 a.output.display(),
                 a.size.0,
@@ -693,7 +738,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 p.mode.name(),
                 r.name()
             );
-            println!(
+            say!(
                 "view: up {}{}, turn {}°, elevation {}°, fitted to the frame",
                 up.name(),
                 if a.up == UpAxis::Auto {
@@ -705,7 +750,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 a.elevation
             );
             if p.mode == NurbsMode::Radius {
-                println!(
+                say!(
                     "tool radius {}{}: red (tight) where the surface is concave with a radius of curvature \
                      below it (a ball tool that size cannot reach), blue concave with a radius from R to 100 R, \
                      grey convex or flatter (concave towards each face's parametric normal Su × Sv)",
@@ -714,7 +759,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 );
             }
             if p.mode == NurbsMode::Draft {
-                println!(
+                say!(
                     "draft against pull ({}){}: green beyond +{t}°, yellow within ±{t}°, red beyond −{t}° \
                      (sign from each face's parametric normal Su × Sv)",
                     vec3_text(p.pull.normalize_or(Vec3::Z)),
@@ -725,13 +770,16 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             if matches!(p.mode, NurbsMode::Gauss | NurbsMode::Mean | NurbsMode::K1 | NurbsMode::K2) {
                 let range = p.curvature_range[p.curvature_slot()];
                 let v = hitex_render::legend::format_value(range);
-                println!(
+                say!(
                     "colour ramp: blue −{v} … white 0 … red +{v} (1/length{}; {}){}",
                     if p.mode == NurbsMode::Gauss { "²" } else { "" },
                     if a.range.is_some() {
                         "as --range gave"
                     } else if matches!(p.mode, NurbsMode::K1 | NurbsMode::K2) {
                         "± twice the area-weighted 75th percentile of max(|κ1|, |κ2|) over the curved part; --range to set"
+                    } else if p.curvature_over_curved_part[p.curvature_slot()] {
+                        "± twice the area-weighted 75th percentile over the curved part (flat faces hold over a quarter \
+                         of the area); --range to set"
                     } else {
                         "± twice the area-weighted 75th percentile over the surface; --range to set"
                     },
@@ -743,13 +791,13 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 );
             }
             if p.isolines > 0 {
-                println!(
+                say!(
                     "isoparametric lines: {} per patch and direction (grey), at equal steps of each patch's parameter range",
                     p.isolines
                 );
             }
             if let Some((n, spacing)) = p.sections {
-                println!(
+                say!(
                     "sections (magenta): the planes ({}) · P = k × {}, exact per pixel",
                     vec3_text(n),
                     hitex_render::legend::format_value(spacing)
@@ -759,7 +807,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
         }
         NurbsCommand::Info { model, chord, json: true } => {
             let m = load(&model, chord)?;
-            println!("{}", serde_json::to_string_pretty(&info_json(&m)).unwrap_or_default());
+            say!("{}", serde_json::to_string_pretty(&info_json(&m)).unwrap_or_default());
             Ok(())
         }
         NurbsCommand::Info { model, chord, json: false } => {
@@ -777,22 +825,22 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 }
             }
             let trimmed = m.surfaces.iter().filter(|s| !s.trim.is_empty()).count();
-            println!("{}: {}, {trimmed} trimmed", m.name, crate::count(m.surfaces.len(), "patch", "patches"));
+            say!("{}: {}, {trimmed} trimmed", m.name, crate::count(m.surfaces.len(), "patch", "patches"));
             let d: Vec<String> = degrees.iter().map(|((p, q), c)| format!("{p}×{q}: {c}")).collect();
-            println!("degrees: {}", d.join(", "));
-            println!("bounds of the control nets: min {lo:?} max {hi:?}");
+            say!("degrees: {}", d.join(", "));
+            say!("bounds of the control nets: min {lo:?} max {hi:?}");
             for n in &m.notes {
-                println!("{n}");
+                say!("{n}");
             }
             for w in &m.warnings {
-                println!("warning: {w}");
+                say!("warning: {w}");
             }
             for r in &m.repairs {
-                println!("repaired: {r}");
+                say!("repaired: {r}");
             }
             for (k, s) in m.surfaces.iter().enumerate() {
                 let n = &s.surface;
-                println!(
+                say!(
                     "  patch {k:>3}: degree {}×{}, {}×{} control points, {}×{} knots, {}, u {:?} v {:?}",
                     n.degree_u,
                     n.degree_v,
@@ -807,7 +855,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 if !s.trim.is_empty() {
                     let sizes: Vec<String> = s.trim.iter().map(|l| l.len().to_string()).collect();
                     let loops = if s.trim.len() == 1 { "loop" } else { "loops" };
-                    println!(
+                    say!(
                         "             trimmed by {} {loops} of {} points in parameter space",
                         s.trim.len(),
                         sizes.join(" / ")
@@ -826,7 +874,23 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 Some("json") => hitex_io::nurbs_json::to_nurbs_json(&m.surfaces),
                 Some("obj") => hitex_io::obj_freeform::to_obj_freeform(&m.surfaces),
                 Some("igs") | Some("iges") => {
-                    hitex_io::nurbs_json::to_iges(&m.surfaces, &format!("{} exported by hitex", m.name))
+                    // IGES states a unit: the model's, else its default (millimetres)
+                    let known = m.units.as_deref().and_then(hitex_io::iges::iges_unit);
+                    if known.is_none() {
+                        eprintln!(
+                            "hitex: note: {}: {}; the IGES file says millimetres, IGES's default",
+                            m.name,
+                            match &m.units {
+                                Some(u) => format!("IGES has no unit flag for '{u}'"),
+                                None => "the model states no length unit".into(),
+                            }
+                        );
+                    }
+                    hitex_io::nurbs_json::to_iges_in(
+                        &m.surfaces,
+                        &format!("{} exported by hitex", m.name),
+                        m.units.as_deref(),
+                    )
                 }
                 _ => {
                     return Err(CliError::Input(format!(
@@ -835,8 +899,18 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                     )));
                 }
             };
+            // what the formats cannot carry is said, not dropped in silence
+            let coloured = m.colors.iter().filter(|c| c.is_some()).count();
+            if coloured > 0 {
+                eprintln!(
+                    "hitex: warning: {}: the colours of {} are not exported (the .igs, .obj and .json \
+                     exports carry surfaces and trims only)",
+                    m.name,
+                    crate::count(coloured, "face", "faces")
+                );
+            }
             hitex_io::write_atomic(&output, text.as_bytes())?;
-            println!("wrote {} ({})", output.display(), crate::count(m.surfaces.len(), "patch", "patches"));
+            say!("wrote {} ({})", output.display(), crate::count(m.surfaces.len(), "patch", "patches"));
             Ok(())
         }
         NurbsCommand::Check(a) => check(a),
@@ -853,7 +927,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             let ((u0, u1), (v0, v1)) = s.surface.domain();
             if uv.0 < u0 || uv.0 > u1 || uv.1 < v0 || uv.1 > v1 {
                 return Err(CliError::Input(format!(
-                    "({}, {}) is outside the patch domain u [{u0}, {u1}] v [{v0}, {v1}]",
+                    "--uv {},{} is outside the patch domain u [{u0}, {u1}] v [{v0}, {v1}]",
                     uv.0, uv.1
                 )));
             }
@@ -867,19 +941,21 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                     "duu": d.d[2][0], "duv": d.d[1][1], "dvv": d.d[0][2],
                     "normal": n, "gaussian": c.gaussian, "mean": c.mean, "principal": c.principal,
                 });
-                println!("{}", serde_json::to_string_pretty(&v).map_err(|e| CliError::Internal(e.to_string()))?);
+                say!("{}", serde_json::to_string_pretty(&v).map_err(|e| CliError::Internal(e.to_string()))?);
             } else {
-                println!("{} patch {patch} at (u, v) = ({}, {})", m.name, uv.0, uv.1);
-                println!("  point     {:?}", d.d[0][0]);
-                println!("  dS/du     {:?}", d.d[1][0]);
-                println!("  dS/dv     {:?}", d.d[0][1]);
-                println!("  d2S/du2   {:?}", d.d[2][0]);
-                println!("  d2S/dudv  {:?}", d.d[1][1]);
-                println!("  d2S/dv2   {:?}", d.d[0][2]);
-                println!("  normal    {n:?}");
-                println!("  gaussian  {:e}", c.gaussian);
-                println!("  mean      {:e}", c.mean);
-                println!("  principal {:e}, {:e}", c.principal[0], c.principal[1]);
+                say!("{} patch {patch} at (u, v) = ({}, {})", m.name, uv.0, uv.1);
+                say!("  point     {:?}", d.d[0][0]);
+                say!("  dS/du     {:?}", d.d[1][0]);
+                say!("  dS/dv     {:?}", d.d[0][1]);
+                say!("  d2S/du2   {:?}", d.d[2][0]);
+                say!("  d2S/dudv  {:?}", d.d[1][1]);
+                say!("  d2S/dv2   {:?}", d.d[0][2]);
+                say!("  normal    {n:?}");
+                // a signed zero prints as 0
+                let g = |x: f64| if x == 0.0 { "0".to_string() } else { format!("{x:e}") };
+                say!("  gaussian  {}", g(c.gaussian));
+                say!("  mean      {}", g(c.mean));
+                say!("  principal {}, {}", g(c.principal[0]), g(c.principal[1]));
             }
             Ok(())
         }

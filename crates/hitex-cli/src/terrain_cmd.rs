@@ -288,9 +288,9 @@ pub(crate) fn load_dem_input(paths: &[PathBuf]) -> Result<DemInput, CliError> {
     let n = tiles.len();
     let (raster, notes) = hitex_io::mosaic::mosaic(tiles)?;
     for l in &notes {
-        println!("{l}");
+        say!("{l}");
     }
-    println!("{}: a mosaic of {n} tiles, {}x{} posts", name.display(), raster.width, raster.height);
+    say!("{}: a mosaic of {n} tiles, {}x{} posts", name.display(), raster.width, raster.height);
     let nodata = |v: f32| !v.is_finite() || raster.nodata.is_some_and(|nd| (v as f64 - nd).abs() < 1e-6);
     if raster.data.iter().all(|&v| nodata(v)) {
         return Err(CliError::Input(format!("{}: no elevation sample in any tile", name.display())));
@@ -369,7 +369,7 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     let co = if crs.is_some() || geographic || !same {
         let co = hitex_io::reproject::co_register(dem, &dem_name, image, crs.as_ref())?;
         for n in &co.notes {
-            println!("{n}");
+            say!("{n}");
         }
         co
     } else {
@@ -390,7 +390,7 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     let filled = fill_holes(&mut dem);
     if filled > 0 {
         let why = if co.notes.is_empty() { "" } else { " (nodata, or outside the source after reprojection)" };
-        println!("filled {filled} missing elevation samples from their neighbours{why}");
+        say!("filled {filled} missing elevation samples from their neighbours{why}");
     }
     // no more posts than the picture can show: a 1″ tile is 13 M posts for a 0.8 M-pixel view
     let (posts, cap) = (dem.width as u64 * dem.height as u64, (4 * a.size.0 as u64 * a.size.1 as u64).max(1 << 20));
@@ -398,9 +398,12 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
         let k = ((posts as f64 / cap as f64).sqrt().ceil() as u32).max(2);
         let (w0, h0) = (dem.width, dem.height);
         dem = hitex_io::geotiff::decimated(&dem, k);
-        println!(
+        say!(
             "meshed {}x{} posts (the means of {k}x{k} blocks): the DEM's {w0}x{h0} are more than 4 a pixel of {}x{}",
-            dem.width, dem.height, a.size.0, a.size.1
+            dem.width,
+            dem.height,
+            a.size.0,
+            a.size.1
         );
     }
     let heights: Vec<f32> = (0..dem.width * dem.height).map(|i| dem.data[i as usize * dem.bands]).collect();
@@ -477,7 +480,7 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
         hitex_render::legend::level_legend(&mut f, scene.textures[0].level_count());
     }
     save(&f, &a.output)?;
-    println!(
+    say!(
         "wrote {} ({}x{}, DEM {}x{} posts at {:.1} m, {}, {}, {}) in {ms:.1} ms",
         a.output.display(),
         a.size.0,
@@ -525,7 +528,7 @@ pub(crate) fn ground_texture(
                 CliError::Input(format!("--pattern '{pattern}' is not one of {}", names.join(", ")))
             })?;
             if !(4..=8192).contains(&texture_size) {
-                return Err(CliError::Input("--texture-size must be in 4..=8192".into()));
+                return Err(CliError::Input("--texture-size must be in 4 to 8192".into()));
             }
             let img = p.render(texture_size).map_err(|e| CliError::Input(e.to_string()))?;
             Ok((MipPyramid::build(img), Wrap::Repeat, format!("procedural {} {texture_size}²", p.name())))
@@ -553,11 +556,11 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
         )));
     }
     if !(1.0..=170.0).contains(&a.fov) {
-        return Err(CliError::Input(format!("--fov {} must be in 1..=170 degrees", a.fov)));
+        return Err(CliError::Input(format!("--fov {} must be in 1 to 170 degrees", a.fov)));
     }
     crate::image_out(&a.output)?;
     if a.frames == 0 || a.frames > 10_000 {
-        return Err(CliError::Input("--frames must be in 1..=10000".into()));
+        return Err(CliError::Input(format!("--frames {} must be in 1 to 10000", a.frames)));
     }
     let (pyr, wrap, name) = spans_texture(&a)?;
     let altitude = a.altitude.unwrap_or(0.3 * pyr.width().max(pyr.height()) as f64);
@@ -748,6 +751,21 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
     Ok(())
 }
 
+/// The widest scanline `terrain active-area` takes (pixels).
+const MAX_SCANLINE: u32 = 1 << 20;
+
+/// A byte count in the binary unit that keeps it readable (`12.0 MiB`, `4.3 TiB`).
+fn binary_size(bytes: f64) -> String {
+    let units = ["B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"];
+    let mut v = bytes;
+    let mut u = 0;
+    while v >= 1024.0 && u + 1 < units.len() {
+        v /= 1024.0;
+        u += 1;
+    }
+    if u == 0 { format!("{v:.0} B") } else { format!("{v:.1} {}", units[u]) }
+}
+
 /// Runs a `hitex terrain` subcommand.
 pub fn run(cmd: TerrainCommand) -> Result<(), CliError> {
     match cmd {
@@ -769,28 +787,32 @@ pub fn run(cmd: TerrainCommand) -> Result<(), CliError> {
                 }
             }
             if !(1..=32).contains(&levels) {
-                return Err(CliError::Input(format!("--levels {levels} must be in 1..=32")));
+                return Err(CliError::Input(format!("--levels {levels} must be in 1 to 32")));
+            }
+            if width > MAX_SCANLINE {
+                return Err(CliError::Input(format!("--width {width}: a scanline of at most {MAX_SCANLINE} pixels")));
             }
             let a = hitex_core::terrain::active_area(fov, width, map, levels)
                 .map_err(|e| CliError::Input(e.to_string()))?;
-            println!("active area for FOV {fov}°, {width} px per scanline, {map}×{map}-texel maps (eq. (7)):");
-            println!(
-                "{:>5} {:>22} {:>10} {:>6} {:>12}",
-                "level", "covers |x| ≤ (maps L0)", "per side", "maps", "memory"
-            );
-            let bytes = map as u64 * map as u64 * 4;
+            say!("active area for FOV {fov}°, {width} px per scanline, {map}×{map}-texel maps (eq. (7)):");
+            say!("{:>5} {:>22} {:>10} {:>6} {:>12}", "level", "covers |x| ≤ (maps L0)", "per side", "maps", "memory");
+            let bytes = map as f64 * map as f64 * 4.0;
             for l in &a {
-                println!(
-                    "{:>5} {:>22.4} {:>10} {:>6} {:>9.1} MiB",
+                say!(
+                    "{:>5} {:>22.4} {:>10} {:>6} {:>13}",
                     l.level,
                     l.radius,
                     l.per_side,
                     l.maps,
-                    (l.maps as u64 * bytes) as f64 / 1048576.0
+                    binary_size(l.maps as f64 * bytes)
                 );
             }
-            let total: u32 = a.iter().map(|l| l.maps).sum();
-            println!("total: {total} maps, {:.1} MiB as RGBA8", (total as u64 * bytes) as f64 / 1048576.0);
+            let total: u64 = a.iter().map(|l| l.maps).sum();
+            say!(
+                "total: {}, {} as RGBA8",
+                crate::count(total as usize, "map", "maps"),
+                binary_size(total as f64 * bytes)
+            );
             Ok(())
         }
     }

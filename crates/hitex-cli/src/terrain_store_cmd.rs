@@ -164,7 +164,7 @@ fn dem_into(
 ) -> Result<(hitex_io::geotiff::GeoRaster, f64, StoredDem, String), CliError> {
     let co = hitex_io::reproject::co_register(dem.raster, &dem.name, None, crs)?;
     for n in &co.notes {
-        println!("{n}");
+        say!("{n}");
     }
     let name = co
         .crs
@@ -191,7 +191,7 @@ fn relief_source(d: crate::terrain_cmd::DemInput) -> Result<(Box<dyn TileSource>
     let (mut dem, unit, stored, crs) = dem_into(d, None)?;
     let filled = hitex_io::geotiff::fill_holes(&mut dem);
     if filled > 0 {
-        println!("filled {filled} missing elevation samples from their neighbours");
+        say!("filled {filled} missing elevation samples from their neighbours");
     }
     let (w, h) = (dem.width, dem.height);
     let heights: Vec<f32> = (0..w as usize * h as usize).map(|i| dem.data[i * dem.bands]).collect();
@@ -213,6 +213,7 @@ fn relief_source(d: crate::terrain_cmd::DemInput) -> Result<(Box<dyn TileSource>
 }
 
 pub fn build(a: BuildArgs) -> Result<(), CliError> {
+    crate::folder_output(&a.output, "terrain build (a tile store)")?;
     let t = Instant::now();
     let dem_in = if a.dem.is_empty() { None } else { Some(crate::terrain_cmd::load_dem_input(&a.dem)?) };
     let mut stored: Option<StoredDem> = None;
@@ -287,11 +288,35 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
             old.height
         )));
     }
+    // nor is a folder of other files made a store in passing
+    if hitex_io::gst::open_store(&a.output).is_err()
+        && let Ok(entries) = std::fs::read_dir(&a.output)
+    {
+        let store_like = |n: &str| {
+            n == "metadata.json"
+                || n == "tilemapresource.xml"
+                || n.starts_with("dem.")
+                || n.starts_with('.')
+                || (!n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+        };
+        let foreign: Vec<String> = entries
+            .flatten()
+            .filter_map(|e| e.file_name().to_str().map(str::to_string))
+            .filter(|n| !store_like(n))
+            .collect();
+        if let Some(first) = foreign.first() {
+            return Err(CliError::Input(format!(
+                "{} holds other files ({first}{}), not a tile store: build into a new or empty folder",
+                a.output.display(),
+                if foreign.len() > 1 { format!(" and {} more", foreign.len() - 1) } else { String::new() }
+            )));
+        }
+    }
     if stored.is_none()
         && let Some(old) = stored_dem(&a.output)
     {
         std::fs::remove_file(&old).map_err(|e| CliError::Input(format!("{}: {e}", old.display())))?;
-        println!("removed {} (an earlier build's DEM; this build has none)", old.display());
+        say!("removed {} (an earlier build's DEM; this build has none)", old.display());
     }
     let pb = crate::progress::Progress::new(
         meta.total_tiles(),
@@ -325,14 +350,14 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
             StoredDem::Write(w) => hitex_io::geotiff::write_dem_geotiff(&target, &w.0, &w.1)?,
         }
     }
-    println!(
-        "{}: {} levels of {TILE}×{TILE} maps from {}; shard {}/{} wrote {} maps ({} left to other shards{}) in {:.1} s",
+    say!(
+        "{}: {} of {TILE}×{TILE} maps from {}; shard {}/{} wrote {} ({} left to other shards{}) in {:.1} s",
         a.output.display(),
-        report.levels,
+        crate::count(report.levels as usize, "level", "levels"),
         meta.source,
         a.shard.0,
         a.shard.1,
-        report.written,
+        crate::count(report.written as usize, "map", "maps"),
         report.other_shards,
         if report.built_top { "; levels above the split built" } else { "" },
         t.elapsed().as_secs_f64()
@@ -592,7 +617,7 @@ fn load_path(path: &Path) -> Result<Vec<PathKey>, CliError> {
         }
         if !(0.0..=1.0).contains(&k.x) || !(0.0..=1.0).contains(&k.y) {
             return Err(CliError::Input(format!(
-                "{}: key[{i}] at x = {}, y = {} is outside the store: x and y are fractions of its extent, in 0..=1",
+                "{}: key[{i}] at x = {}, y = {} is outside the store: x and y are fractions of its extent, in 0 to 1",
                 path.display(),
                 k.x,
                 k.y
@@ -671,19 +696,50 @@ pub fn frame_setup(
     (stats, FlyUniform::new(cam, w, h, meta.levels, per_side), pages)
 }
 
+/// Removes the frames (`frame-NNNN.png`) of an earlier flight into `dir`
+/// that this one, of `frames` frames, does not overwrite, so that the
+/// folder holds one flight; other files are left alone.
+fn remove_stale_frames(dir: &Path, frames: u32) -> Result<(), CliError> {
+    let Ok(entries) = std::fs::read_dir(dir) else { return Ok(()) };
+    let mut removed = 0usize;
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let Some(n) = name.to_str().and_then(|n| n.strip_prefix("frame-")).and_then(|n| n.strip_suffix(".png")) else {
+            continue;
+        };
+        if n.len() >= 4 && n.bytes().all(|b| b.is_ascii_digit()) && n.parse::<u64>().is_ok_and(|k| k >= frames as u64) {
+            std::fs::remove_file(e.path()).map_err(|err| CliError::Input(format!("{}: {err}", e.path().display())))?;
+            removed += 1;
+        }
+    }
+    if removed > 0 {
+        eprintln!(
+            "hitex: note: {}: removed {} of an earlier, longer flight",
+            dir.display(),
+            crate::count(removed, "frame", "frames")
+        );
+    }
+    Ok(())
+}
+
 /// `hitex terrain fly`.
 pub fn fly(a: FlyArgs) -> Result<(), CliError> {
     crate::keep_going_on_closed_stdout();
     if a.frames == 0 || a.frames > 100_000 {
-        return Err(CliError::Input(format!("--frames {} must be in 1..=100000", a.frames)));
+        return Err(CliError::Input(format!("--frames {} must be in 1 to 100000", a.frames)));
     }
     if a.budget == 0 {
         return Err(CliError::Input(
             "--budget 0: the cache must hold at least one map (the paper's setting holds 324)".into(),
         ));
     }
+    crate::folder_output(&a.output, "terrain fly (one PNG per frame)")?;
+    if !(a.fov.is_finite() && a.fov > 0.0 && a.fov < 180.0) {
+        return Err(CliError::Input(format!("--fov {} must be in (0, 180) degrees", a.fov)));
+    }
     let meta = open_store(&a.store)?;
     hitex_io::create_output_dir(&a.output)?;
+    remove_stale_frames(&a.output, a.frames)?;
     let (w, h) = a.size;
     let extent = DVec2::new(meta.width as f64, meta.height as f64);
     let metres = meta.pixel[0];
@@ -743,9 +799,9 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
     let mut times = Vec::new();
     let mut peak = (0usize, 0usize);
     say!(
-        "flying over {} ({} levels, {}x{} texels, {}) at {w}x{h}, {}, budget {} maps, {}:",
+        "flying over {} ({}, {}x{} texels, {}) at {w}x{h}, {}, budget {}, {}:",
         a.store.display(),
-        meta.levels,
+        crate::count(meta.levels as usize, "level", "levels"),
         meta.width,
         meta.height,
         match &relief {
@@ -753,7 +809,7 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
             None => "flat ground".into(),
         },
         sampler.name(),
-        a.budget,
+        crate::count(a.budget, "map", "maps"),
         renderer.name()
     );
     say!(
@@ -832,9 +888,9 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
     }
     let med = crate::bench::median(&mut times);
     say!(
-        "median {med:.1} ms per frame ({}); at most {} resident maps ({:.1} MiB), budget {}; frames in {}",
+        "median {med:.1} ms per frame ({}); at most {} resident ({:.1} MiB), budget {}; frames in {}",
         renderer.name(),
-        peak.0,
+        crate::count(peak.0, "map", "maps"),
         peak.1 as f64 / 1048576.0,
         a.budget,
         a.output.display()

@@ -601,7 +601,7 @@ impl ViewApp {
         self.status = match &self.last {
             Some(f) => match save(f, path) {
                 Ok(()) => format!("wrote {} ({}x{})", path.display(), f.width, f.height),
-                Err(CliError::Input(e) | CliError::Internal(e) | CliError::Check(e)) => {
+                Err(CliError::Input(e) | CliError::Internal(e) | CliError::Check(e) | CliError::Unavailable(e)) => {
                     format!("screenshot failed: {e}")
                 }
             },
@@ -693,7 +693,7 @@ impl eframe::App for ViewApp {
             && self.frames >= after
         {
             self.shoot(&path);
-            println!("{}", self.status);
+            say!("{}", self.status);
             self.screenshot = None;
             if self.window_screenshot.is_none() {
                 ctx.send_viewport_cmd(egui::ViewportCommand::Close);
@@ -721,7 +721,7 @@ fn window_shot(ctx: &egui::Context, path: PathBuf, then_close: bool) {
     ctx.request_screenshot(move |img| {
         let rgba: Vec<u8> = img.pixels.iter().flat_map(|p| p.to_array()).collect();
         match hitex_io::save_png(&path, img.size[0] as u32, img.size[1] as u32, &rgba) {
-            Ok(()) => println!("wrote {} ({}x{}, the window)", path.display(), img.size[0], img.size[1]),
+            Ok(()) => say!("wrote {} ({}x{}, the window)", path.display(), img.size[0], img.size[1]),
             Err(e) => eprintln!("hitex: window screenshot failed: {e}"),
         }
         if then_close {
@@ -733,7 +733,7 @@ fn window_shot(ctx: &egui::Context, path: PathBuf, then_close: bool) {
 
 /// Why no window can be opened, and what to use instead.
 fn no_window(why: &str) -> CliError {
-    CliError::Internal(format!(
+    CliError::Unavailable(format!(
         "{why}. Without a window, render headless: hitex render, hitex nurbs render, hitex btf render, \
          hitex terrain fly or hitex terrain spans (with --backend cpu where there is no GPU)"
     ))
@@ -742,7 +742,7 @@ fn no_window(why: &str) -> CliError {
 /// `hitex view`.
 pub fn run(a: ViewArgs) -> Result<(), CliError> {
     if a.frames == 0 || a.frames > 100_000 {
-        return Err(CliError::Input("--frames must be in 1..=100000".into()));
+        return Err(CliError::Input("--frames must be in 1 to 100000".into()));
     }
     let aspect = a.size.map_or(a.window.0 as f32 / a.window.1 as f32, |(w, h)| w as f32 / h as f32);
     // the input is checked before any window opens

@@ -239,6 +239,27 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
         &["nurbs", "deviation", "teapot", "--points", &w("scan.xyz", b"0 0 1\n2 3\n")],
     ));
     v.push(c(
+        "points (XYZ)",
+        "a TIFF image given as points",
+        &["nurbs", "deviation", "teapot", "--points", &w("l7.tif", b"II*\0\x08\0\0\0\x11\0\x00\x01\x03\0\x01")],
+    ));
+    v.push(c(
+        "IGES",
+        "bytes beyond ASCII in the directory",
+        &[
+            "nurbs",
+            "info",
+            &w("latin.igs", &{
+                let mut t = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/teapot.igs")).unwrap();
+                // the first directory line (the third: after one start and one
+                // global line): a Latin-1 byte in its seventh column
+                let third = t.iter().enumerate().filter(|&(_, &b)| b == b'\n').nth(1).map_or(0, |(i, _)| i + 1);
+                t[third + 6] = 0xe9;
+                t
+            }),
+        ],
+    ));
+    v.push(c(
         "points (JSON)",
         "a point of two coordinates",
         &["nurbs", "deviation", "teapot", "--points", &w("probe.json", b"{\"points\": [[0, 0, 1], [2, 3]]}")],

@@ -360,6 +360,13 @@ fn terrain_active_area_and_render() {
     assert!(o.status.success() && s.contains("total: 324 maps"), "{s}");
     let o = hitex(&["terrain", "active-area", "--fov", "0"]);
     assert_eq!(o.status.code(), Some(2));
+    // a wide field of view needs billions of maps: counted in 64 bits, not wrapped
+    let o = hitex(&["terrain", "active-area", "--fov", "179.99"]);
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && s.contains("total: 4727937600 maps"), "{s}");
+    assert!(s.contains("525326400") && s.contains("TiB"), "{s}");
+    let o = hitex(&["terrain", "active-area", "--width", "1000000000"]);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
 
     // the Olinda pair kept in the repository (the same files as ../shared/data/terrain)
     let dem = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/olinda/olinda_dem_utm25s.tif");

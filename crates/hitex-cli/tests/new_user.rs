@@ -43,6 +43,221 @@ fn a_closed_pipe_ends_quietly() {
     }
 }
 
+/// A report that cannot be written (a full disk: `/dev/full`) fails the run
+/// with exit 1 and one line, never a panic, and never a pass of `nurbs check`.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_full_stdout_fails_the_run_in_one_line() {
+    let dir = tmp("full-stdout");
+    let png = dir.join("t.png");
+    let cases: Vec<Vec<String>> = [
+        vec!["nurbs", "info", &teapot()[..]],
+        vec!["nurbs", "info", &teapot()[..], "--json"],
+        vec!["nurbs", "check", &teapot()[..]],
+        vec!["nurbs", "check", &teapot()[..], "--json"],
+        vec!["nurbs", "eval", "teapot", "--uv", "0.5,0.5"],
+        vec!["btf", "info", "knit"],
+        vec!["terrain", "active-area"],
+        vec!["demo", "--print-scene"],
+        vec!["nurbs", "render", "surface", "--size", "16x16", "--backend", "cpu", "-o", png.to_str().unwrap()],
+    ]
+    .iter()
+    .map(|a| a.iter().map(|s| s.to_string()).collect())
+    .collect();
+    for args in cases {
+        let full = std::fs::OpenOptions::new().write(true).open("/dev/full").expect("/dev/full");
+        let out = Command::new(env!("CARGO_BIN_EXE_hitex")).args(&args).stdout(full).output().expect("hitex runs");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        let lines = error_lines(&out);
+        assert_eq!(lines.len(), 1, "{args:?}: {err}");
+        assert!(lines[0].contains("standard output") && lines[0].contains("No space left"), "{args:?}: {err}");
+    }
+}
+
+/// `nurbs check` finds the same edges at any sample spacing (parts of an
+/// assembly touching made the nearest face flip between samples), and a
+/// spacing too fine for memory is refused before any work, naming the
+/// spacing that would do.
+#[test]
+fn the_edge_check_is_bounded_and_its_edges_do_not_depend_on_the_spacing() {
+    let asm = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/cad/as1-oc-214.stp");
+    let shared = |spacing: &str| -> Vec<(u64, u64)> {
+        let o = hitex(&["nurbs", "check", asm, "--json", "--spacing", spacing]);
+        assert!(o.status.code() == Some(0) || o.status.code() == Some(1), "{}", String::from_utf8_lossy(&o.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON report");
+        let mut pairs: Vec<(u64, u64)> = v["edges"]
+            .as_array()
+            .expect("edges")
+            .iter()
+            .filter_map(|e| Some((e["face"].as_u64()?, e["neighbour"].as_u64()?)))
+            .collect();
+        pairs.sort();
+        pairs
+    };
+    let coarse = shared("0.5");
+    let fine = shared("0.1");
+    // before: 542 shared edges at the default spacing, 1271 at 0.1, 9183 at 0.01
+    let (a, b) = (coarse.len() as f64, fine.len() as f64);
+    assert!((b - a).abs() <= 0.1 * a, "shared edges at spacing 0.5: {a}, at 0.1: {b}");
+
+    let o = hitex(&["nurbs", "check", asm, "--spacing", "1e-6"]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = error_lines(&o);
+    assert!(e.len() == 1 && e[0].contains("--spacing") && e[0].contains("or more"), "{e:?}");
+}
+
+/// On a machined part (mostly planes) the mean and Gaussian ramps are scaled
+/// by the curved faces, not by the planes' zeros (which gave ±1e-12 and a
+/// saturated picture), and the legend says so.
+#[test]
+fn curvature_ramps_of_a_machined_part_are_scaled_by_its_curved_faces() {
+    let part = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/cad/face_recognition_sample_part.stp");
+    let d = tmp("machined-ramp");
+    for mode in ["mean", "gauss"] {
+        let out = d.join(format!("{mode}.png"));
+        let o = hitex(&[
+            "nurbs",
+            "render",
+            part,
+            "--mode",
+            mode,
+            "--size",
+            "300x600",
+            "--backend",
+            "cpu",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let s = String::from_utf8_lossy(&o.stdout);
+        let ramp = s.lines().find(|l| l.starts_with("colour ramp")).expect("ramp line");
+        assert!(ramp.contains("curved part") && !ramp.contains("e-12"), "{mode}: {ramp}");
+        // the legend is drawn on a narrow, tall frame too
+        let img = image::open(&out).unwrap().to_rgb8();
+        let strip = (img.width() - 90..img.width()).flat_map(|x| (0..img.height()).map(move |y| (x, y)));
+        let reds = strip.filter(|&(x, y)| {
+            let p = img.get_pixel(x, y);
+            p[0] > 150 && p[1] < 90 && p[2] < 90
+        });
+        assert!(reds.count() > 20, "{mode}: no ramp in the legend strip");
+    }
+}
+
+/// An export says what its format cannot carry (STEP colours), and IGES
+/// keeps the model's length unit both ways.
+#[test]
+fn exports_name_what_they_drop_and_keep_the_unit() {
+    let asm = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/cad/as1-oc-214.stp");
+    let d = tmp("export-units");
+    let out = d.join("asm.igs");
+    let o = hitex(&["nurbs", "export", asm, "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("warning") && e.contains("colours of"), "{e}");
+    let o = hitex(&["nurbs", "info", out.to_str().unwrap(), "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    assert_eq!(v["units"], "mm", "{v}");
+    // a model without a unit: IGES's default, said as a note
+    let out = d.join("teapot.igs");
+    let o = hitex(&["nurbs", "export", &teapot(), "-o", out.to_str().unwrap()]);
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("states no length unit"));
+}
+
+/// Outputs are what their names say: a folder output named like a file, a
+/// file output of another type, a store built into a folder of other files
+/// are refused before any work; a shorter flight into the same folder
+/// leaves no frames of the longer one behind.
+#[test]
+fn outputs_are_what_their_names_say() {
+    let d = tmp("output-kinds");
+    let p = |n: &str| d.join(n).to_str().unwrap().to_string();
+    for (args, flag) in [
+        (vec!["btf", "export", "knit", "-o", &p("set.zip")[..]], "folder"),
+        (vec!["btf", "import", &p("nothing")[..], "-o", &p("i8.png")[..]], ".hbtf"),
+        (vec!["terrain", "fly", &p("nostore")[..], "-o", &p("x.png")[..]], "folder"),
+        (vec!["terrain", "build", "--procedural", "300x300", "-o", &p("st.json")[..]], "folder"),
+    ] {
+        let o = hitex(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        let e = error_lines(&o);
+        assert!(e.len() == 1 && e[0].contains(flag), "{args:?}: {e:?}");
+        assert!(!std::path::Path::new(args.last().unwrap()).exists(), "{args:?} left its output");
+    }
+    // a folder of someone's files is not made a store
+    std::fs::create_dir_all(d.join("mine")).unwrap();
+    std::fs::write(d.join("mine/notes.txt"), "mine").unwrap();
+    let o = hitex(&["terrain", "build", "--procedural", "300x300", "-o", &p("mine")]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(error_lines(&o)[0].contains("notes.txt"), "{:?}", error_lines(&o));
+    // three frames, then one: the folder holds one flight
+    assert!(hitex(&["terrain", "build", "--procedural", "300x300", "-o", &p("st")]).status.success());
+    let fly = |n: &str| {
+        hitex(&["terrain", "fly", &p("st"), "--frames", n, "--size", "32x24", "--backend", "cpu", "-o", &p("fl")])
+    };
+    assert!(fly("3").status.success());
+    assert!(d.join("fl/frame-0002.png").exists());
+    let o = fly("1");
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("removed 2 frames"));
+    let left: Vec<_> = std::fs::read_dir(d.join("fl")).unwrap().flatten().map(|e| e.file_name()).collect();
+    assert_eq!(left.len(), 1, "{left:?}");
+}
+
+/// An image set much sparser than the grid it is imported onto (one light
+/// direction filling eight) is imported, with a warning that names it.
+#[test]
+fn a_sparse_image_set_is_named_when_resampled() {
+    let d = tmp("sparse-set");
+    let p = |n: &str| d.join(n).to_str().unwrap().to_string();
+    assert!(
+        hitex(&["btf", "synth", "knit", "--size", "8", "--theta", "0,45", "--phi", "4", "-o", &p("k.hbtf")])
+            .status
+            .success()
+    );
+    assert!(hitex(&["btf", "export", &p("k.hbtf"), "-o", &p("set")]).status.success());
+    for e in std::fs::read_dir(d.join("set")).unwrap().flatten() {
+        if !e.file_name().to_string_lossy().starts_with("tl045_pl090") {
+            std::fs::remove_file(e.path()).unwrap();
+        }
+    }
+    let o = hitex(&["btf", "import", &p("set"), "--theta", "0,45", "--phi", "4", "-o", &p("one.hbtf")]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("warning") && e.contains("1 light direction but the grid has 8"), "{e}");
+    assert!(!e.contains("view direction"), "{e}");
+}
+
+/// A mesh without texture coordinates shows the material (projected, and
+/// said), not one stretched texel.
+#[test]
+fn a_mesh_without_texture_coordinates_still_shows_the_material() {
+    let d = tmp("no-vt");
+    let obj = d.join("quad.obj");
+    std::fs::write(&obj, "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nf 1 2 3\nf 1 3 4\n").unwrap();
+    let out = d.join("q.png");
+    let o = hitex(&[
+        "btf",
+        "render",
+        "knit",
+        "--on",
+        obj.to_str().unwrap(),
+        "--size",
+        "64x48",
+        "--backend",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no texture coordinates"));
+    let img = image::open(&out).unwrap().to_rgb8();
+    let colours: std::collections::HashSet<[u8; 3]> = img.pixels().map(|p| p.0).collect();
+    assert!(colours.len() > 40, "{} colours: the material does not show", colours.len());
+}
+
 #[test]
 fn negative_numbers_are_numbers() {
     let d = tmp("negative");
@@ -70,6 +285,23 @@ fn negative_numbers_are_numbers() {
     let o = hitex(&["btf", "render", "knit", "--repeats", "-2", "-o", out.to_str().unwrap()]);
     let e = error_lines(&o);
     assert!(e.len() == 1 && e[0].contains("--repeats -2 must be in (0, 1000]"), "{e:?}");
+    // a negative count is refused by the flag it was given to, by name
+    for (args, flag) in [
+        (vec!["nurbs", "eval", "teapot", "--patch", "-1"], "--patch"),
+        (vec!["btf", "index", "knit", "--seed", "-5", "-o", out.to_str().unwrap()], "--seed"),
+        (vec!["terrain", "fly", "nostore", "--frames", "-3", "-o", "nofly"], "--frames"),
+    ] {
+        let o = hitex(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(e.contains(flag) && !e.contains("unexpected argument"), "{args:?}: {e}");
+    }
+    // a size inside the advertised range that the grid cannot hold is refused
+    // at once with the largest that fits
+    let o = hitex(&["btf", "synth", "knit", "--size", "1024", "-o", d.join("k.hbtf").to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = error_lines(&o);
+    assert!(e.len() == 1 && e[0].contains("at most --size 256"), "{e:?}");
 }
 
 #[test]
@@ -505,7 +737,7 @@ fn one_flag_name_one_meaning() {
     }
     let o = hitex(&["nurbs", "render", "teapot", "--isophotes", "0", "-o", o_]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(error_lines(&o).join("\n").contains("--isophotes 0 must be in 1..=1000"));
+    assert!(error_lines(&o).join("\n").contains("--isophotes 0 must be in 1 to 1000"));
     let help = hitex(&["nurbs", "render", "--help"]);
     assert!(String::from_utf8_lossy(&help.stdout).contains("--isophotes"));
 }
