@@ -753,6 +753,11 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
             ))
         })?),
     };
+    if a.no_aircraft && relief.is_none() {
+        eprintln!(
+            "hitex: warning: --no-aircraft: the aircraft flies over relief only; this flight is over flat ground"
+        );
+    }
     let relief = relief.map(|mut r| {
         r.aircraft = !a.no_aircraft;
         r

@@ -258,6 +258,70 @@ fn a_mesh_without_texture_coordinates_still_shows_the_material() {
     assert!(colours.len() > 40, "{} colours: the material does not show", colours.len());
 }
 
+/// Messages in the user's terms: a file given as a store, a file that is no
+/// zip archive, a bare array as a DEM, `--no-aircraft` where no aircraft flies.
+#[test]
+fn messages_speak_of_the_users_files() {
+    let d = tmp("plain-words");
+    let p = |n: &str| d.join(n).to_str().unwrap().to_string();
+    std::fs::write(d.join("asm.png"), b"\x89PNG\r\n\x1a\n").unwrap();
+    let o = hitex(&["terrain", "fly", &p("asm.png"), "-o", &p("frames")]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(error_lines(&o)[0].contains("a file, not a tile store"), "{:?}", error_lines(&o));
+    std::fs::write(d.join("set.zip"), b"PK\x03\x04 cut short").unwrap();
+    let o = hitex(&["btf", "import", &p("set.zip"), "-o", &p("s.hbtf")]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = error_lines(&o);
+    assert!(e[0].contains("not a zip archive, or a truncated one") && !e[0].contains("EOCD"), "{e:?}");
+    // a bare array: rendered, and said to have no georeferencing
+    let mut npy = b"\x93NUMPY\x01\x00".to_vec();
+    let mut h = "{'descr': '<f4', 'fortran_order': False, 'shape': (4, 4), }".to_string();
+    while !(10 + h.len() + 1).is_multiple_of(64) {
+        h.push(' ');
+    }
+    h.push('\n');
+    npy.extend_from_slice(&(h.len() as u16).to_le_bytes());
+    npy.extend_from_slice(h.as_bytes());
+    for k in 0..16 {
+        npy.extend_from_slice(&(k as f32).to_le_bytes());
+    }
+    std::fs::write(d.join("bare.npy"), npy).unwrap();
+    let o = hitex(&[
+        "terrain",
+        "render",
+        "--dem",
+        &p("bare.npy"),
+        "--size",
+        "32x24",
+        "--backend",
+        "cpu",
+        "-o",
+        &p("t.png"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no georeferencing"));
+    // the aircraft flies over relief only
+    assert!(hitex(&["terrain", "build", "--procedural", "300x300", "-o", &p("st")]).status.success());
+    let o = hitex(&[
+        "terrain",
+        "fly",
+        &p("st"),
+        "--ground",
+        "flat",
+        "--no-aircraft",
+        "--frames",
+        "1",
+        "--size",
+        "32x24",
+        "--backend",
+        "cpu",
+        "-o",
+        &p("fl"),
+    ]);
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--no-aircraft"));
+}
+
 #[test]
 fn negative_numbers_are_numbers() {
     let d = tmp("negative");

@@ -280,8 +280,17 @@ impl Source {
         } else {
             let file =
                 std::fs::File::open(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
-            let mut zip = zip::ZipArchive::new(file)
-                .map_err(|e| fmt(format!("neither a folder nor a readable zip archive: {e}")))?;
+            let mut zip = zip::ZipArchive::new(file).map_err(|e| {
+                // the zip crate's words ("Could not find EOCD") mean: no
+                // archive directory at the end, i.e. not a zip or a cut one
+                let why = match e {
+                    zip::result::ZipError::InvalidArchive(_) => {
+                        "no zip directory at its end (not a zip archive, or a truncated one)".to_string()
+                    }
+                    e => e.to_string(),
+                };
+                fmt(format!("neither a folder nor a readable zip archive: {why}"))
+            })?;
             for i in 0..zip.len() {
                 let f = zip.by_index_raw(i).map_err(|e| fmt(format!("zip entry {i}: {e}")))?;
                 if f.is_dir() {

@@ -37,6 +37,20 @@ pub fn elevation_warnings(r: &GeoRaster) -> Vec<String> {
             if bytes { " of whole numbers in 0–255 (this looks like colour imagery)" } else { "" }
         ));
     }
+    // a bare array (.npy, an .npz without x/y) says nothing of where its
+    // posts are: meshed one metre apart, which is said
+    let bare = r.epsg.is_none()
+        && r.projection.is_none()
+        && r.proj4.is_none()
+        && r.pixel == [1.0, 1.0]
+        && r.origin == [0.0, r.height as f64];
+    if bare {
+        w.push(
+            "no georeferencing (a bare array): posts are taken 1 m apart, heights in metres; \
+             a GeoTIFF, .hgt, .asc or an .npz with x/y coordinates places them"
+                .into(),
+        );
+    }
     w
 }
 
@@ -366,6 +380,16 @@ mod tests {
         assert!(parse_npy(&npy("<c8", "(1,)", &[0; 8])).unwrap_err().contains("not supported"));
         assert!(parse_npy(&npy("<i2", "(2, 3, 4)", &body)).unwrap_err().contains("3-dimensional"));
         assert!(parse_npy(&npy("<i2", "(99999999, 99999999)", &body)).unwrap_err().contains("limit"));
+    }
+
+    #[test]
+    fn a_bare_array_is_said_to_have_no_georeferencing() {
+        let body: Vec<u8> = [1i16, -2, 3, 4, 5, 6].iter().flat_map(|v| v.to_le_bytes()).collect();
+        let r = parse_elevation(&npy("<i2", "(2, 3)", &body), Path::new("bare.npy")).unwrap();
+        let w = elevation_warnings(&r);
+        assert!(w.iter().any(|w| w.contains("no georeferencing")), "{w:?}");
+        let g = parse_ascii_grid("ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 30\n1 2\n3 4\n").unwrap();
+        assert!(elevation_warnings(&g).is_empty());
     }
 
     #[test]

@@ -544,6 +544,12 @@ fn parent_tile(meta: &StoreMeta, root: &Path, z: u32, x: u32, y: u32) -> Result<
 
 /// Opens a store: reads and checks `metadata.json`.
 pub fn open_store(root: &Path) -> Result<StoreMeta, IoError> {
+    if root.is_file() {
+        return Err(IoError::Format {
+            path: root.to_path_buf(),
+            message: "a file, not a tile store (the folder `hitex terrain build -o` makes)".into(),
+        });
+    }
     let path = root.join("metadata.json");
     let text = std::fs::read_to_string(&path).map_err(|source| IoError::Read { path: path.clone(), source })?;
     parse_store_meta(&text, &path)

@@ -59,8 +59,10 @@ impl CpuRenderer {
     ) {
         let frame = scene.frame(camera, width, height);
         let program = nurbs::NurbsProgram::new(&frame, &scene.packed);
-        let varyings: Vec<[f32; nurbs::VARYINGS]> = scene.vertices.iter().map(nurbs::varyings).collect();
-        let positions: Vec<glam::Vec3> = scene.vertices.iter().map(|v| glam::Vec3::from_array(v.position)).collect();
+        use rayon::prelude::*;
+        let varyings: Vec<[f32; nurbs::VARYINGS]> = scene.vertices.par_iter().map(nurbs::varyings).collect();
+        let positions: Vec<glam::Vec3> =
+            scene.vertices.par_iter().map(|v| glam::Vec3::from_array(v.position)).collect();
         let draws = [crate::prepare::Draw { first_index: 0, index_count: scene.indices.len() as u32, material: 0 }];
         let view_proj = glam::Mat4::from_cols_array_2d(&frame.view_proj);
         // fragments too far behind what is drawn already are not evaluated;
@@ -72,17 +74,30 @@ impl CpuRenderer {
         });
         let sorted;
         let indices = if early.is_some() {
+            // one 64-bit key per triangle: the squared distance of its centroid
+            // (non-negative, so its bits order as the value does) above its
+            // index (ties in submission order), sorted in parallel
             let eye = camera.position;
-            let mut tris: Vec<(f32, [u32; 3])> = scene
+            let mut keys: Vec<u64> = scene
                 .indices
-                .chunks_exact(3)
-                .map(|t| {
+                .par_chunks_exact(3)
+                .enumerate()
+                .map(|(k, t)| {
                     let c = t.iter().map(|&i| positions[i as usize]).fold(glam::Vec3::ZERO, |a, p| a + p) / 3.0;
-                    ((c - eye).length_squared(), [t[0], t[1], t[2]])
+                    let d = (c - eye).length_squared();
+                    // NaN (a degenerate vertex) last
+                    let bits = if d.is_nan() { u32::MAX } else { d.to_bits() };
+                    (bits as u64) << 32 | k as u64
                 })
                 .collect();
-            tris.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
-            sorted = tris.into_iter().flat_map(|t| t.1).collect::<Vec<u32>>();
+            keys.par_sort_unstable();
+            sorted = keys
+                .par_iter()
+                .flat_map_iter(|&key| {
+                    let k = (key & 0xffff_ffff) as usize;
+                    scene.indices[3 * k..3 * k + 3].iter().copied()
+                })
+                .collect::<Vec<u32>>();
             &sorted
         } else {
             &scene.indices

@@ -303,7 +303,7 @@ pub fn rasterize_early<const K: usize, S: BlockShader<K>>(
     // depth d in [0, 1] of distance w: d = r (near / w − 1), r = far / (near − far)
     let occ = early.filter(|_| S::WRITES_DEPTH).map(|o| {
         let r = o.far / (o.near - o.far);
-        OccParams { margin: o.margin, near: o.near, r }
+        OccParams { margin: o.margin, near: o.near, inv_r: 1.0 / r }
     });
     // vertex stage
     let clip: Vec<Vec4> = positions.par_iter().map(|p| view_proj * p.extend(1.0)).collect();
@@ -382,7 +382,8 @@ pub fn rasterize_early<const K: usize, S: BlockShader<K>>(
 struct OccParams {
     margin: f32,
     near: f32,
-    r: f32,
+    /// 1 / r, r = far / (near − far).
+    inv_r: f32,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -407,8 +408,8 @@ fn setup<const K: usize>(
         // viewport: NDC y up, pixel rows down
         let sx = (nx * 0.5 + 0.5) * wf;
         let sy = (0.5 - ny * 0.5) * hf;
-        x[k] = (sx * ONE as f32).round() as i64;
-        y[k] = (sy * ONE as f32).round() as i64;
+        x[k] = round_half_away(sx * ONE as f32);
+        y[k] = round_half_away(sy * ONE as f32);
         qs[k] = q;
         zs[k] = nz;
         let (a, b, c) = (&varyings[idx[0]], &varyings[idx[1]], &varyings[idx[2]]);
@@ -467,6 +468,23 @@ fn setup<const K: usize>(
         by1: py1 as u32,
         _k: std::marker::PhantomData,
     })
+}
+
+/// `v.round() as i64` (halves away from zero) without the library call
+/// that `round` is on the baseline x86-64 target: the truncating
+/// conversion is one instruction, and below 2²³ the fraction it leaves is
+/// exact (above, every f32 is an integer and the fraction is zero).
+#[inline(always)]
+fn round_half_away(v: f32) -> i64 {
+    let t = v as i64;
+    let f = v - t as f32;
+    if f >= 0.5 {
+        t + 1
+    } else if f <= -0.5 {
+        t - 1
+    } else {
+        t
+    }
 }
 
 /// Edge function of edge (a → b) at fixed-point p: positive inside.
@@ -761,12 +779,11 @@ fn raster_block<const K: usize, S: BlockShader<K>, Sm: pulp::Simd>(
         for lane in 0..LANES {
             if mask & (1 << lane) != 0 {
                 let d = out.depth[index(lane)];
-                // nothing drawn yet: depth 1 (the far plane)
-                if d < 1.0 {
-                    let dist = p.near / (d / p.r + 1.0);
-                    if w[lane] - p.margin > dist {
-                        mask &= !(1 << lane);
-                    }
+                // nothing drawn yet: depth 1 (the far plane); the distance
+                // of depth d is near / (d/r + 1), with d/r + 1 > 0 for d < 1
+                // (r = far / (near − far) < −1): compared without dividing
+                if d < 1.0 && (w[lane] - p.margin) * (d * p.inv_r + 1.0) > p.near {
+                    mask &= !(1 << lane);
                 }
             }
         }
@@ -853,6 +870,20 @@ mod tests {
             }
         }
         count
+    }
+
+    #[test]
+    fn rounding_matches_the_library_round() {
+        let mut v = vec![0.0f32, 0.5, -0.5, 1.5, -1.5, 2.5, 0.49999997, -0.49999997, 8388607.5, 8388608.0, 1e9, -1e9];
+        let mut x = 0.123f32;
+        for _ in 0..100_000 {
+            x = (x * 3.7 + 0.31).fract();
+            v.push((x - 0.5) * 4.0 * 4096.0 * 256.0);
+            v.push(((x * 4096.0).round() + 0.5) * if x > 0.5 { 1.0 } else { -1.0 });
+        }
+        for a in v {
+            assert_eq!(round_half_away(a), a.round() as i64, "{a}");
+        }
     }
 
     #[test]
