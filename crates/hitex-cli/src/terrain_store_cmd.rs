@@ -893,9 +893,10 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
     }
     let med = crate::bench::median(&mut times);
     say!(
-        "median {med:.1} ms per frame ({}); at most {} resident ({:.1} MiB), budget {}; frames in {}",
+        "median {med:.1} ms per frame ({}); at most {} resident {} ({:.1} MiB), budget {}; frames in {}",
         renderer.name(),
-        crate::count(peak.0, "map", "maps"),
+        peak.0,
+        if peak.0 == 1 { "map" } else { "maps" },
         peak.1 as f64 / 1048576.0,
         a.budget,
         a.output.display()

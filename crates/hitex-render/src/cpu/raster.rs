@@ -316,7 +316,10 @@ pub fn rasterize_early<const K: usize, S: BlockShader<K>>(
             indices[range].chunks_exact(3).map(move |t| (d.material, [t[0], t[1], t[2]]))
         })
         .collect();
-    let tris: Vec<Setup<K>> = flat
+    // kept as the chunks' own vectors (a triangle is named by its chunk and
+    // its place there): flattening them into one vector would copy every
+    // set-up triangle once more per frame
+    let tris: Vec<Vec<Setup<K>>> = flat
         .par_chunks(SETUP_CHUNK)
         .map(|chunk| {
             let mut out = Vec::with_capacity(chunk.len());
@@ -349,16 +352,17 @@ pub fn rasterize_early<const K: usize, S: BlockShader<K>>(
             }
             out
         })
-        .flatten_iter()
         .collect();
 
     // binning into bands
     let bands = height.div_ceil(BAND) as usize;
-    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); bands];
-    for (i, t) in tris.iter().enumerate() {
-        let (b0, b1) = ((t.by0 / BAND) as usize, ((t.by1 - 1) / BAND) as usize);
-        for bin in &mut bins[b0..=b1] {
-            bin.push(i as u32);
+    let mut bins: Vec<Vec<(u32, u32)>> = vec![Vec::new(); bands];
+    for (c, chunk) in tris.iter().enumerate() {
+        for (i, t) in chunk.iter().enumerate() {
+            let (b0, b1) = ((t.by0 / BAND) as usize, ((t.by1 - 1) / BAND) as usize);
+            for bin in &mut bins[b0..=b1] {
+                bin.push((c as u32, i as u32));
+            }
         }
     }
 
@@ -507,8 +511,8 @@ const fn lane_dy(lane: usize) -> i64 {
 /// The traversal of one band (its triangles in submission order), compiled
 /// per SIMD level.
 struct BandOp<'a, const K: usize, S> {
-    tris: &'a [Setup<K>],
-    bin: &'a [u32],
+    tris: &'a [Vec<Setup<K>>],
+    bin: &'a [(u32, u32)],
     shader: &'a S,
     color: &'a mut [[u8; 4]],
     depth: &'a mut [f32],
@@ -526,8 +530,8 @@ impl<const K: usize, S: BlockShader<K>> pulp::WithSimd for BandOp<'_, K, S> {
         let mut batch = Batch::<K>::new();
         let mut out = Out { shader: self.shader, color: self.color, depth: self.depth };
         let pack = self.shader.packs_triangles();
-        for &ti in self.bin {
-            let t = &self.tris[ti as usize];
+        for &(c, i) in self.bin {
+            let t = &self.tris[c as usize][i as usize];
             raster_band(simd, t, &mut batch, &mut out, self.width, self.y_band, self.rows, self.occ);
             if !pack {
                 batch.flush(&mut out);
