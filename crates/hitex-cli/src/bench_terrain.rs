@@ -113,7 +113,7 @@ pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
         .map_or(6, |l| l.per_side);
     // load every map the flight needs first: the timed frames then measure rendering only
     let budget = (meta.total_tiles() as usize).max(1);
-    let cache = RefCell::new(open_cache(&dir, &meta, budget)?);
+    let cache = RefCell::new(open_cache(std::sync::Arc::new(hitex_io::gst::Store::open(&dir)?), budget)?);
     let mut resident = (0usize, 0usize);
     for i in 0..frames {
         let mut start = Instant::now();

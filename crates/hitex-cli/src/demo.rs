@@ -218,6 +218,8 @@ fn terrain_showcase(
         dem: vec![dem],
         procedural: None,
         output: store.clone(),
+        profile: None,
+        format: None,
         shard: (0, 1),
         max_maps: crate::terrain_store_cmd::DEFAULT_MAX_MAPS,
         ignore_free_space: false,

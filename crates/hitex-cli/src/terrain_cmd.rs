@@ -23,6 +23,14 @@ pub enum TerrainCommand {
     Build(crate::terrain_store_cmd::BuildArgs),
     /// Fly over a store through the resident-map cache, writing PNG frames.
     Fly(crate::terrain_store_cmd::FlyArgs),
+    /// Pack a finished web-mercator store folder (e.g. built by shards) into one MBTiles file.
+    Pack {
+        /// The store folder (built with --profile mercator).
+        store: PathBuf,
+        /// The MBTiles file to write.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Maps of each MIP level the active area needs (eq. (5)–(7)) and their memory.
     ActiveArea {
         /// Horizontal field of view, degrees.
@@ -300,7 +308,19 @@ pub(crate) fn load_dem_input(paths: &[PathBuf]) -> Result<DemInput, CliError> {
 
 /// Reads an elevation model, saying on stderr what looks wrong with it.
 pub(crate) fn load_dem(path: &std::path::Path) -> Result<hitex_io::geotiff::GeoRaster, CliError> {
-    let dem = load_elevation(path)?;
+    checked_dem(load_elevation(path)?, path)
+}
+
+/// An elevation model held in memory (`path` names it and its extension
+/// gives the format), checked as [`load_dem`] checks a file.
+pub(crate) fn parse_dem(bytes: &[u8], path: &std::path::Path) -> Result<hitex_io::geotiff::GeoRaster, CliError> {
+    checked_dem(hitex_io::dem::parse_elevation(bytes, path)?, path)
+}
+
+fn checked_dem(
+    dem: hitex_io::geotiff::GeoRaster,
+    path: &std::path::Path,
+) -> Result<hitex_io::geotiff::GeoRaster, CliError> {
     let nodata = |v: f32| !v.is_finite() || dem.nodata.is_some_and(|n| (v as f64 - n).abs() < 1e-6);
     if (0..dem.width as usize * dem.height as usize).all(|i| nodata(dem.data[i * dem.bands])) {
         return Err(CliError::Input(format!(
@@ -772,6 +792,7 @@ pub fn run(cmd: TerrainCommand) -> Result<(), CliError> {
         TerrainCommand::Render(a) => render(a),
         TerrainCommand::Build(a) => crate::terrain_store_cmd::build(a),
         TerrainCommand::Fly(a) => crate::terrain_store_cmd::fly(a),
+        TerrainCommand::Pack { store, output } => crate::terrain_store_cmd::pack(&store, &output),
         TerrainCommand::Spans(a) => spans(a),
         TerrainCommand::ActiveArea { fov, width, map, levels } => {
             // the flags by name, before the library's own check

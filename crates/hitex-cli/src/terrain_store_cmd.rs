@@ -6,8 +6,8 @@ use clap::Args;
 use glam::DVec2;
 use hitex_core::residency::{MapKey, ResidentMaps, View, active_maps};
 use hitex_io::gst::{
-    BuildOptions, GeoTiffSource, MemorySource, ProceduralSource, StoreMeta, TILE, TileSource, build_store, open_store,
-    read_tile,
+    BuildOptions, GeoTiffSource, MemorySource, ProceduralSource, Store, StoreMeta, TILE, TileSource, build_store,
+    open_store, stored_dem,
 };
 use hitex_render::terrain::{FlyCamera, FlyGround, FlyMesh, FlyPages, FlySampler, FlyUniform, GenericTexture};
 use hitex_render::{Job, Renderer};
@@ -35,9 +35,19 @@ pub struct BuildArgs {
     /// Instead of an image: procedural imagery of WIDTHxHEIGHT texels, generated on the fly.
     #[arg(long, value_parser = parse_big_size)]
     pub procedural: Option<(u32, u32)>,
-    /// Output store (a TMS directory).
+    /// Output store: a TMS folder, or one MBTiles file (a name ending in .mbtiles).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Tiling: `local` (level 0 one map over the imagery, in its own CRS) or
+    /// `mercator` (the global web-mercator tiles of EPSG:3857 that web maps
+    /// and simulator scenery tools load; the imagery is reprojected).
+    /// Default: mercator for MBTiles, else local.
+    #[arg(long, value_enum)]
+    pub profile: Option<ProfileArg>,
+    /// Store form: a folder of `zoom/column/row.png` files, or one MBTiles
+    /// file (SQLite; web-mercator only). Default: from the output's name.
+    #[arg(long, value_enum)]
+    pub format: Option<FormatArg>,
     /// This process's share of the work, INDEX/COUNT (e.g. 0/4).
     #[arg(long, value_parser = parse_shard, default_value = "0/1")]
     pub shard: (u32, u32),
@@ -48,6 +58,24 @@ pub struct BuildArgs {
     /// compressing file system).
     #[arg(long)]
     pub ignore_free_space: bool,
+}
+
+/// `--profile` of `terrain build`.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ProfileArg {
+    /// Level 0 is one map over the imagery, in the imagery's CRS.
+    Local,
+    /// Web-mercator tiles (EPSG:3857, OSGeo TMS global-mercator).
+    Mercator,
+}
+
+/// `--format` of `terrain build`.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum FormatArg {
+    /// A folder of PNG files (TMS rows) with metadata.json and tilemapresource.xml.
+    Folder,
+    /// One MBTiles 1.3 file (SQLite).
+    Mbtiles,
 }
 
 /// The default cap on the maps one build writes (about 4 M files, a
@@ -135,11 +163,17 @@ fn parse_shard(s: &str) -> Result<(u32, u32), String> {
 /// `hitex terrain build`.
 /// The store metadata of georeferenced imagery `img` described as `name`.
 /// Imagery in longitude and latitude is refused: a store's texels are metric.
-fn meta_for(img: &hitex_io::geotiff::GeoRaster, name: &str, path: &Path) -> Result<StoreMeta, CliError> {
-    if img.is_geographic() {
+fn meta_for(
+    img: &hitex_io::geotiff::GeoRaster,
+    name: &str,
+    path: &Path,
+    mercator: bool,
+) -> Result<StoreMeta, CliError> {
+    if img.is_geographic() && !mercator {
         return Err(CliError::Input(format!(
             "{}: the imagery is in longitude and latitude ({}): a store needs it in a projected CRS; \
-             reproject it first (e.g. gdalwarp -t_srs EPSG:N), or use `terrain render`, which reprojects",
+             build it with --profile mercator (reprojected to web mercator), reproject it first \
+             (e.g. gdalwarp -t_srs EPSG:N), or use `terrain render`, which reprojects",
             path.display(),
             img.crs_name()
         )));
@@ -158,10 +192,11 @@ enum StoredDem {
 /// The DEM brought into `crs` (or, without one, into a metric CRS when it
 /// is geographic), saying what was reprojected; with what to store: the
 /// user's one file as it is, else the raster written as a GeoTIFF.
+#[allow(clippy::type_complexity)]
 fn dem_into(
     dem: crate::terrain_cmd::DemInput,
     crs: Option<&hitex_io::crs::Crs>,
-) -> Result<(hitex_io::geotiff::GeoRaster, f64, StoredDem, String), CliError> {
+) -> Result<(hitex_io::geotiff::GeoRaster, f64, StoredDem, String, Option<hitex_io::crs::Crs>), CliError> {
     let co = hitex_io::reproject::co_register(dem.raster, &dem.name, None, crs)?;
     for n in &co.notes {
         say!("{n}");
@@ -181,14 +216,17 @@ fn dem_into(
         }
         (Some(f), None, false) => StoredDem::Copy(f.clone()),
     };
-    Ok((co.dem, co.unit_metres, stored, name))
+    Ok((co.dem, co.unit_metres, stored, name, co.crs))
 }
 
 /// A store's imagery from elevations alone: the DEM's shaded relief, at
 /// least 1,024 texels on its longer side (up to 8 texels a post).
-fn relief_source(d: crate::terrain_cmd::DemInput) -> Result<(Box<dyn TileSource>, StoreMeta, StoredDem), CliError> {
+#[allow(clippy::type_complexity)]
+fn relief_source(
+    d: crate::terrain_cmd::DemInput,
+) -> Result<(Box<dyn TileSource>, StoreMeta, StoredDem, Option<hitex_io::crs::Crs>), CliError> {
     let name = d.name.clone();
-    let (mut dem, unit, stored, crs) = dem_into(d, None)?;
+    let (mut dem, unit, stored, crs, crs_of) = dem_into(d, None)?;
     let filled = hitex_io::geotiff::fill_holes(&mut dem);
     if filled > 0 {
         say!("filled {filled} missing elevation samples from their neighbours");
@@ -209,15 +247,41 @@ fn relief_source(d: crate::terrain_cmd::DemInput) -> Result<(Box<dyn TileSource>
         &name,
     );
     let src = MemorySource { width: w * k, height: h * k, rgba: img.bytes().to_vec(), name };
-    Ok((Box::new(src), meta, stored))
+    Ok((Box::new(src), meta, stored, crs_of))
 }
 
 pub fn build(a: BuildArgs) -> Result<(), CliError> {
-    crate::folder_output(&a.output, "terrain build (a tile store)")?;
+    let mbtiles_name = a.output.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("mbtiles"));
+    let format = a.format.unwrap_or(if mbtiles_name { FormatArg::Mbtiles } else { FormatArg::Folder });
+    let profile =
+        a.profile.unwrap_or(if format == FormatArg::Mbtiles { ProfileArg::Mercator } else { ProfileArg::Local });
+    let mercator = profile == ProfileArg::Mercator;
+    match format {
+        FormatArg::Folder => crate::folder_output(&a.output, "terrain build (a tile store)")?,
+        FormatArg::Mbtiles => {
+            crate::file_output(&a.output, &["mbtiles"], "terrain build --format mbtiles (one SQLite file)")?;
+            if !mercator {
+                return Err(CliError::Input(
+                    "--format mbtiles holds web-mercator tiles: use --profile mercator (the default for MBTiles)"
+                        .into(),
+                ));
+            }
+            if a.shard != (0, 1) {
+                return Err(CliError::Input(format!(
+                    "--shard {}/{}: shards build the folder form (--profile mercator -o FOLDER); \
+                     pack the finished folder into one file with `hitex terrain pack FOLDER -o {}`",
+                    a.shard.0,
+                    a.shard.1,
+                    a.output.display()
+                )));
+            }
+        }
+    }
     let t = Instant::now();
     let dem_in = if a.dem.is_empty() { None } else { Some(crate::terrain_cmd::load_dem_input(&a.dem)?) };
     let mut stored: Option<StoredDem> = None;
-    let (source, meta): (Box<dyn TileSource>, StoreMeta) = match (&a.image, a.procedural) {
+    type Crs = hitex_io::crs::Crs;
+    let (source, meta, crs): (Box<dyn TileSource>, StoreMeta, Option<Crs>) = match (&a.image, a.procedural) {
         (Some(path), _) if hitex_io::geotiff::is_world_image(path) => {
             let Some(d) = dem_in else {
                 return Err(CliError::Input(format!(
@@ -227,10 +291,11 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
             };
             let (img, rgb) = crate::terrain_cmd::world_imagery(path, &d.raster, &d.name)?;
             let name = format!("{} (world file)", path.display());
-            let meta = meta_for(&img, &name, path)?;
+            let meta = meta_for(&img, &name, path, mercator)?;
+            let crs = d.raster.crs().ok();
             stored = Some(dem_into(d, None)?.2);
             let src = MemorySource { width: img.width, height: img.height, rgba: rgb.bytes().to_vec(), name };
-            (Box::new(src) as Box<dyn TileSource>, meta)
+            (Box::new(src) as Box<dyn TileSource>, meta, crs)
         }
         (Some(path), _) => {
             // read by windows: memory stays bounded whatever the file's size
@@ -246,26 +311,27 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
                     let crs = img.crs().map_err(|m| {
                         CliError::Input(format!("{}: cannot reproject the DEM into it: {m}", path.display()))
                     })?;
-                    let (dem, _, s, _) = dem_into(d, Some(&crs))?;
+                    let (dem, _, s, _, _) = dem_into(d, Some(&crs))?;
                     crate::terrain_cmd::check_coregistered(&dem, &img, &name, path)?;
                     stored = Some(s);
                 }
             }
             let bands = crate::terrain_cmd::parse_bands(&a.bands, &img, path)?;
             let name = format!("{} bands {}", path.display(), a.bands);
-            let meta = meta_for(&img, &name, path)?;
-            (Box::new(GeoTiffSource::new(tiff, bands, name)?), meta)
+            let meta = meta_for(&img, &name, path, mercator)?;
+            let crs = img.crs().ok();
+            (Box::new(GeoTiffSource::new(tiff, bands, name)?), meta, crs)
         }
         (None, Some((w, h))) => {
             let src = ProceduralSource { width: w, height: h, seed: 1 };
             let meta = StoreMeta::for_source(w, h, [0.0, 0.0], [1.0, 1.0], "", &src.describe());
-            (Box::new(src), meta)
+            (Box::new(src), meta, None)
         }
         (None, None) => match dem_in {
             Some(d) => {
-                let (src, meta, s) = relief_source(d)?;
+                let (src, meta, s, crs) = relief_source(d)?;
                 stored = Some(s);
-                (src, meta)
+                (src, meta, crs)
             }
             None => {
                 return Err(CliError::Input(
@@ -274,11 +340,63 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
             }
         },
     };
+    let (source, meta) = if mercator {
+        let Some(from) = crs else {
+            return Err(CliError::Input(if a.procedural.is_some() {
+                "procedural imagery has no place on Earth: web-mercator tiles (--profile mercator, MBTiles) \
+                 need imagery with a CRS"
+                    .to_string()
+            } else {
+                format!(
+                    "{}: its CRS ({}) cannot be resolved, so it cannot be placed on web-mercator tiles",
+                    meta.source,
+                    if meta.crs.is_empty() { "none" } else { &meta.crs }
+                )
+            }));
+        };
+        let inner = hitex_io::reproject::Grid {
+            width: meta.width,
+            height: meta.height,
+            origin: meta.origin,
+            pixel: meta.pixel,
+        };
+        let fail = |m: String| CliError::Input(format!("{}: {m}", meta.source));
+        let (zoom, bounds) = hitex_io::reproject::mercator_zoom(&inner, &from).map_err(fail)?;
+        let merc = StoreMeta::mercator(bounds, zoom, &meta.source).map_err(fail)?;
+        let to = Crs::from_epsg(3857).map_err(|e| fail(e.to_string()))?;
+        let grid = hitex_io::reproject::Grid {
+            width: merc.width,
+            height: merc.height,
+            origin: merc.data_origin(),
+            pixel: merc.pixel,
+        };
+        say!(
+            "imagery reprojected from {} to web mercator (EPSG:3857): zoom {} to {}, {}x{} texels at zoom {zoom} ({:.2} m on the ground)",
+            from.name(),
+            merc.zoom(0),
+            merc.zoom(merc.levels - 1),
+            merc.width,
+            merc.height,
+            merc.ground_pixel()
+        );
+        if let Some(s) = stored.take() {
+            stored = Some(dem_to_mercator(s, &to)?);
+        }
+        (
+            Box::new(hitex_io::reproject::ReprojectedSource::new(source, inner, from, to, grid)) as Box<dyn TileSource>,
+            merc,
+        )
+    } else {
+        (source, meta)
+    };
     check_build_size(&a, &meta, source.as_ref())?;
+    if format == FormatArg::Mbtiles {
+        return build_mbtiles_file(&a, source.as_ref(), &meta, stored, t);
+    }
     // a store of another source is not overwritten map by map (the shards of
     // one build share theirs); a DEM left by an earlier build goes
     if let Ok(old) = hitex_io::gst::open_store(&a.output)
-        && (old.width, old.height, &old.source) != (meta.width, meta.height, &meta.source)
+        && (old.width, old.height, &old.source, old.profile) != (meta.width, meta.height, &meta.source, meta.profile)
     {
         return Err(CliError::Input(format!(
             "{} holds a store of another source ({}, {}x{}): build into an empty folder, or remove it first",
@@ -318,12 +436,7 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
         std::fs::remove_file(&old).map_err(|e| CliError::Input(format!("{}: {e}", old.display())))?;
         say!("removed {} (an earlier build's DEM; this build has none)", old.display());
     }
-    let pb = crate::progress::Progress::new(
-        meta.total_tiles(),
-        "build",
-        "maps",
-        "{prefix:>8} [{bar:30}] {pos}/{len} maps {elapsed} (eta {eta})",
-    );
+    let pb = build_progress(&meta);
     let report = build_store(source.as_ref(), &meta, &a.output, BuildOptions { shard: a.shard }, &|done, total| {
         pb.set_length(total);
         pb.set_position(done);
@@ -331,24 +444,14 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
     pb.finish_and_clear();
     if let Some(s) = stored {
         // one DEM in the store: an earlier build's of another format goes
-        let target = match &s {
-            StoredDem::Copy(d) => {
-                a.output.join(format!("dem.{}", d.extension().and_then(|e| e.to_str()).unwrap_or("tif")))
-            }
-            StoredDem::Write(..) => a.output.join("dem.tif"),
-        };
+        let (name, bytes) = dem_file(s)?;
+        let target = a.output.join(name);
         if let Some(old) = stored_dem(&a.output)
             && old != target
         {
             std::fs::remove_file(&old).map_err(|e| CliError::Input(format!("{}: {e}", old.display())))?;
         }
-        match s {
-            StoredDem::Copy(d) => {
-                let bytes = std::fs::read(&d).map_err(|source| hitex_io::IoError::Read { path: d.clone(), source })?;
-                hitex_io::write_atomic(&target, &bytes)?;
-            }
-            StoredDem::Write(w) => hitex_io::geotiff::write_dem_geotiff(&target, &w.0, &w.1)?,
-        }
+        hitex_io::write_atomic(&target, &bytes)?;
     }
     say!(
         "{}: {} of {TILE}×{TILE} maps from {}; shard {}/{} wrote {} ({} left to other shards{}) in {:.1} s",
@@ -360,6 +463,119 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
         crate::count(report.written as usize, "map", "maps"),
         report.other_shards,
         if report.built_top { "; levels above the split built" } else { "" },
+        t.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// `hitex terrain pack`: a web-mercator folder store into one MBTiles file.
+pub fn pack(store: &Path, output: &Path) -> Result<(), CliError> {
+    crate::file_output(output, &["mbtiles"], "terrain pack (one MBTiles file)")?;
+    let t = Instant::now();
+    let meta = open_store(store)?;
+    let pb = build_progress(&meta);
+    let n = hitex_io::mbtiles::pack_folder(store, output, &|done, total| {
+        pb.set_length(total);
+        pb.set_position(done);
+    })?;
+    pb.finish_and_clear();
+    say!(
+        "{}: MBTiles of {} (zoom {} to {}) packed from {} in {:.1} s",
+        output.display(),
+        crate::count(n as usize, "tile", "tiles"),
+        meta.zoom(0),
+        meta.zoom(meta.levels - 1),
+        store.display(),
+        t.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+fn build_progress(meta: &StoreMeta) -> crate::progress::Progress {
+    crate::progress::Progress::new(
+        meta.total_tiles(),
+        "build",
+        "maps",
+        "{prefix:>8} [{bar:30}] {pos}/{len} maps {elapsed} (eta {eta})",
+    )
+}
+
+/// The name (`dem.EXT`) and bytes of the DEM a store keeps.
+fn dem_file(s: StoredDem) -> Result<(String, Vec<u8>), CliError> {
+    Ok(match s {
+        StoredDem::Copy(d) => {
+            let ext = d.extension().and_then(|e| e.to_str()).unwrap_or("tif").to_string();
+            let bytes = std::fs::read(&d).map_err(|source| hitex_io::IoError::Read { path: d.clone(), source })?;
+            (format!("dem.{ext}"), bytes)
+        }
+        StoredDem::Write(w) => {
+            let bytes = hitex_io::geotiff::dem_geotiff_bytes(&w.0, &w.1)
+                .map_err(|m| CliError::Input(format!("the DEM cannot be written as a GeoTIFF: {m}")))?;
+            ("dem.tif".to_string(), bytes)
+        }
+    })
+}
+
+/// The DEM a web-mercator store keeps: reprojected onto EPSG:3857 (`to`).
+fn dem_to_mercator(s: StoredDem, to: &hitex_io::crs::Crs) -> Result<StoredDem, CliError> {
+    let (raster, crs, name) = match s {
+        StoredDem::Copy(p) => {
+            let r = crate::terrain_cmd::load_dem(&p)?;
+            let c = r.crs().map_err(|m| CliError::Input(format!("{}: cannot reproject it: {m}", p.display())))?;
+            (r, c, p.display().to_string())
+        }
+        StoredDem::Write(w) => {
+            let (r, c) = *w;
+            (r, c, "the DEM".to_string())
+        }
+    };
+    if crs == *to {
+        return Ok(StoredDem::Write(Box::new((raster, crs))));
+    }
+    let grid = hitex_io::reproject::covering_grid(&raster, &crs, to, hitex_io::geotiff::MAX_SAMPLES)
+        .map_err(|m| CliError::Input(format!("{name}: {m}")))?;
+    let r = hitex_io::reproject::reproject(&raster, &crs, to, &grid, Some(3857));
+    say!("DEM reprojected from {} to web mercator (EPSG:3857): {}x{} posts", crs.name(), r.width, r.height);
+    Ok(StoredDem::Write(Box::new((r, to.clone()))))
+}
+
+/// `terrain build --format mbtiles`: one SQLite file, written whole.
+fn build_mbtiles_file(
+    a: &BuildArgs,
+    source: &dyn TileSource,
+    meta: &StoreMeta,
+    stored: Option<StoredDem>,
+    t: Instant,
+) -> Result<(), CliError> {
+    if a.output.exists() {
+        match hitex_io::gst::Store::open(&a.output) {
+            Ok(old) if old.meta.source != meta.source => {
+                return Err(CliError::Input(format!(
+                    "{} holds a store of another source ({}): give another name, or remove it first",
+                    a.output.display(),
+                    old.meta.source
+                )));
+            }
+            Ok(_) => {}
+            Err(e) => return Err(CliError::Input(format!("{e}; hitex does not replace it"))),
+        }
+    }
+    let files = stored.map(dem_file).transpose()?.into_iter().collect::<Vec<_>>();
+    let pb = build_progress(meta);
+    let report = hitex_io::mbtiles::build_mbtiles(source, meta, &a.output, &files, &|done, total| {
+        pb.set_length(total);
+        pb.set_position(done);
+    })?;
+    pb.finish_and_clear();
+    say!(
+        "{}: MBTiles of {} ({} of {TILE}×{TILE} maps, zoom {} to {}) from {}{} in {:.1} s",
+        a.output.display(),
+        crate::count(report.written as usize, "tile", "tiles"),
+        crate::count(report.levels as usize, "level", "levels"),
+        meta.zoom(0),
+        meta.zoom(meta.levels - 1),
+        meta.source,
+        if files.is_empty() { String::new() } else { format!(", with its DEM ({})", files[0].0) },
         t.elapsed().as_secs_f64()
     );
     Ok(())
@@ -476,34 +692,24 @@ pub struct Relief {
 }
 
 /// The DEM a store holds beside its maps (`dem.*`), if any.
-fn stored_dem(store: &Path) -> Option<PathBuf> {
-    let entries = std::fs::read_dir(store).ok()?;
-    let mut found: Vec<PathBuf> = entries
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.file_stem().is_some_and(|s| s == "dem") && p.is_file())
-        .collect();
-    found.sort();
-    found.into_iter().next()
-}
-
 /// Direction towards the sun (south-east, 50° up).
 const SUN: [f32; 3] = [0.49, 0.49, 0.72];
 
 impl Relief {
     /// The DEM stored beside the maps (`dem.*`, copied in by `terrain build --dem`), if any.
-    pub fn open(store: &Path, meta: &StoreMeta, exaggeration: f64) -> Result<Option<Self>, CliError> {
-        let Some(path) = stored_dem(store) else { return Ok(None) };
+    pub fn open(store: &Store, exaggeration: f64) -> Result<Option<Self>, CliError> {
+        let meta = &store.meta;
+        let Some((path, bytes)) = store.dem()? else { return Ok(None) };
         if !(exaggeration.is_finite() && exaggeration >= 0.0) {
             return Err(CliError::Input(format!("--exaggeration {exaggeration} must be finite and ≥ 0")));
         }
-        let mut dem = crate::terrain_cmd::load_dem(&path)?;
+        let mut dem = crate::terrain_cmd::parse_dem(&bytes, &path)?;
         let filled = hitex_io::geotiff::fill_holes(&mut dem);
         if filled == (dem.width as usize * dem.height as usize) {
             return Err(CliError::Input(format!("{}: every elevation sample is nodata", path.display())));
         }
         if meta.pixel[0] <= 0.0 || meta.pixel[1] <= 0.0 {
-            return Err(CliError::Input(format!("{}: the store's texel size is not positive", store.display())));
+            return Err(CliError::Input(format!("{}: the store's texel size is not positive", store.path.display())));
         }
         let heights: Vec<f32> =
             (0..dem.width as usize * dem.height as usize).map(|i| dem.data[i * dem.bands]).collect();
@@ -519,7 +725,7 @@ impl Relief {
             h: dem.height as usize,
             origin,
             spacing,
-            height_scale: exaggeration / meta.pixel[0],
+            height_scale: exaggeration / meta.ground_pixel(),
             generic: GenericTexture::livery(),
             aircraft: true,
             path,
@@ -650,19 +856,19 @@ fn at_time(keys: &[PathKey], t: f64) -> PathKey {
     }
 }
 
-/// The resident-map cache of a store, loading maps with [`read_tile`].
-pub fn open_cache(store: &Path, meta: &StoreMeta, budget: usize) -> Result<ResidentMaps, CliError> {
-    let root = store.to_path_buf();
-    let m2 = meta.clone();
+/// The resident-map cache of a store, loading its maps (files or MBTiles rows).
+pub fn open_cache(store: Arc<Store>, budget: usize) -> Result<ResidentMaps, CliError> {
     let loader: Arc<hitex_core::residency::Loader> =
-        Arc::new(move |k: MapKey| read_tile(&m2, &root, k.z, k.x, k.y).map_err(|e| e.to_string()));
+        Arc::new(move |k: MapKey| store.read_tile(k.z, k.x, k.y).map_err(|e| e.to_string()));
     ResidentMaps::new(budget, loader).map_err(CliError::Input)
 }
 
-/// The camera of a path key over a store of `extent` finest texels (the
-/// key's pitch below the horizon becomes the paper's angle from the nadir).
+/// The camera of a path key over a store's data of `extent` finest texels
+/// (x and y are fractions of the data; the key's pitch below the horizon
+/// becomes the paper's angle from the nadir).
 pub fn camera_at(k: &PathKey, meta: &StoreMeta, extent: DVec2, fov: f64) -> FlyCamera {
-    FlyCamera::new(k.x * extent.x, k.y * extent.y, k.altitude / meta.pixel[0], 90.0 - k.pitch, k.heading, fov)
+    let (x, y) = (meta.offset[0] as f64 + k.x * extent.x, meta.offset[1] as f64 + k.y * extent.y);
+    FlyCamera::new(x, y, k.altitude / meta.ground_pixel(), 90.0 - k.pitch, k.heading, fov)
 }
 
 /// One frame's cache traffic, uniforms and page table; with `wait`, the
@@ -680,7 +886,7 @@ pub fn frame_setup(
 ) -> (hitex_core::residency::FrameStats, FlyUniform, FlyPages) {
     let eye = [cam.eye[0], cam.eye[1]];
     let view = View { fov_deg: fov, pixels: w, per_side };
-    let needed = active_maps(meta.levels, TILE, |z| meta.data_tiles(z), eye, cam.eye[2], view);
+    let needed = active_maps(meta.levels, TILE, |z| meta.data_range(z), eye, cam.eye[2], view);
     let mut stats = cache.begin_frame(&needed);
     if wait {
         // loading is the background thread's work: waiting for it is not frame time
@@ -692,7 +898,7 @@ pub fn frame_setup(
     for line in cache.take_log() {
         eprintln!("hitex: warning: {line}");
     }
-    let pages = FlyPages::new(cache, meta.levels, per_side, |z| meta.data_tiles(z), eye);
+    let pages = FlyPages::new(cache, meta.levels, per_side, |z| meta.data_range(z), eye);
     (stats, FlyUniform::new(cam, w, h, meta.levels, per_side), pages)
 }
 
@@ -737,16 +943,17 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
     if !(a.fov.is_finite() && a.fov > 0.0 && a.fov < 180.0) {
         return Err(CliError::Input(format!("--fov {} must be in (0, 180) degrees", a.fov)));
     }
-    let meta = open_store(&a.store)?;
+    let store = Arc::new(Store::open(&a.store)?);
+    let meta = store.meta.clone();
     hitex_io::create_output_dir(&a.output)?;
     remove_stale_frames(&a.output, a.frames)?;
     let (w, h) = a.size;
     let extent = DVec2::new(meta.width as f64, meta.height as f64);
-    let metres = meta.pixel[0];
+    let metres = meta.ground_pixel();
     let relief = match a.ground {
         GroundArg::Flat => None,
-        GroundArg::Auto => Relief::open(&a.store, &meta, a.exaggeration)?,
-        GroundArg::Relief => Some(Relief::open(&a.store, &meta, a.exaggeration)?.ok_or_else(|| {
+        GroundArg::Auto => Relief::open(&store, a.exaggeration)?,
+        GroundArg::Relief => Some(Relief::open(&store, a.exaggeration)?.ok_or_else(|| {
             CliError::Input(format!(
                 "{} holds no DEM (dem.*): build it with --dem, or fly --ground flat",
                 a.store.display()
@@ -798,7 +1005,7 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
         .first()
         .map_or(6, |l| l.per_side);
     let sampler = FlySampler::from(a.sampler);
-    let mut cache = open_cache(&a.store, &meta, a.budget)?;
+    let mut cache = open_cache(store.clone(), a.budget)?;
     let mut renderer = open_renderer(a.backend.into())?;
     let (t0, t1) = (keys[0].t, keys[keys.len() - 1].t);
     let mut times = Vec::new();

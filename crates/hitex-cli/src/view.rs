@@ -233,13 +233,19 @@ fn light_dir(az: f32, el: f32) -> Vec3 {
 fn open(input: &str, mode: Option<&str>, aspect: f32) -> Result<Content, CliError> {
     let path = Path::new(input);
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
-    if path.is_dir() {
-        let meta = hitex_io::gst::open_store(path)?;
-        let cache = crate::terrain_store_cmd::open_cache(path, &meta, 400)?;
+    if path.is_dir() || ext == "mbtiles" {
+        let store = std::sync::Arc::new(hitex_io::gst::Store::open(path)?);
+        let meta = store.meta.clone();
+        let cache = crate::terrain_store_cmd::open_cache(store, 400)?;
         let fov = 45.0;
         let extent = DVec2::new(meta.width as f64, meta.height as f64);
-        let flight =
-            Flight { x: 0.5, y: 0.8, altitude: extent.max_element() * meta.pixel[0] / 10.0, pitch: 60.0, heading: 0.0 };
+        let flight = Flight {
+            x: 0.5,
+            y: 0.8,
+            altitude: extent.max_element() * meta.ground_pixel() / 10.0,
+            pitch: 60.0,
+            heading: 0.0,
+        };
         if let Some(m) = mode
             && m != "trilinear"
         {

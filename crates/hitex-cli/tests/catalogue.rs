@@ -324,6 +324,42 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
     let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/olinda/");
     let (dem, image) = (format!("{data}olinda_dem_utm25s.tif"), format!("{data}L7_ETMs.tif"));
     assert!(hitex(&["terrain", "build", "--image", &image, "--dem", &dem, "-o", &s(&olinda)]).status.success());
+    // MBTiles: one SQLite file of web-mercator tiles
+    let mb = d.join("olinda.mbtiles");
+    assert!(hitex(&["terrain", "build", "--image", &image, "--dem", &dem, "-o", &s(&mb)]).status.success());
+    let text_mb = w("notes.mbtiles", b"my notes, not tiles");
+    v.push(c("MBTiles store", "not an SQLite file", &["terrain", "fly", &text_mb, "-o", &s(&d.join("frames"))]));
+    let edited = |name: &str, sql: &str| -> String {
+        let p = d.join(name);
+        std::fs::copy(&mb, &p).unwrap();
+        rusqlite::Connection::open(&p).unwrap().execute_batch(sql).unwrap();
+        s(&p)
+    };
+    let other = edited("other-tool.mbtiles", "DELETE FROM metadata WHERE name = 'hitex';");
+    v.push(c(
+        "MBTiles store",
+        "made by another tool (no hitex description)",
+        &["terrain", "fly", &other, "-o", &s(&d.join("frames"))],
+    ));
+    let holes = edited("holes.mbtiles", "DELETE FROM tiles WHERE zoom_level = 11;");
+    v.push(c("MBTiles store", "its level-0 tile missing", &["terrain", "fly", &holes, "-o", &s(&d.join("frames"))]));
+    let big = edited("big.mbtiles", "UPDATE tiles SET tile_data = zeroblob(5000000) WHERE zoom_level = 11;");
+    v.push(c("MBTiles store", "a tile of 5 MB", &["terrain", "fly", &big, "-o", &s(&d.join("frames"))]));
+    v.push(c(
+        "terrain build",
+        "--format mbtiles of procedural imagery (no CRS)",
+        &["terrain", "build", "--procedural", "300x300", "-o", &s(&d.join("p.mbtiles"))],
+    ));
+    v.push(c(
+        "terrain build",
+        "-o names a file that is not an MBTiles file",
+        &["terrain", "build", "--image", &image, "-o", &text_mb],
+    ));
+    v.push(c(
+        "terrain pack",
+        "a local (not web-mercator) store",
+        &["terrain", "pack", &s(&olinda), "-o", &s(&d.join("x.mbtiles"))],
+    ));
     let world = w("ortho.png", &std::fs::read(image_png_for_catalogue(d)).unwrap());
     std::fs::write(d.join("ortho.pgw"), "28.5\n0.2\n0\n-28.5\n288790\n9120740\n").unwrap();
     v.push(c(

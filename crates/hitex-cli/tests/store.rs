@@ -295,3 +295,140 @@ fn shards_run_at_the_same_time_build_the_store_of_one_process() {
         assert!(bytes == &b[name], "{name} differs between the single and the concurrent build");
     }
 }
+
+#[test]
+fn olinda_as_web_mercator_tiles_flies_like_the_local_store() {
+    let d = tmp("store-mercator");
+    let (dem, image) = (olinda("olinda_dem_utm25s.tif"), olinda("L7_ETMs.tif"));
+    let (local, file, folder, packed) =
+        (d.join("local"), d.join("olinda.mbtiles"), d.join("mercator"), d.join("packed.mbtiles"));
+    let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let o = hitex(&["terrain", "build", "--image", &image, "--dem", &dem, "-o", &s(&local)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // an .mbtiles name: web mercator in one SQLite file, the DEM inside
+    let o = hitex(&["terrain", "build", "--image", &image, "--dem", &dem, "-o", &s(&file)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("web mercator (EPSG:3857): zoom 11 to 13") && text.contains("with its DEM"), "{text}");
+    // the folder form in two shards, packed after: the same file content
+    for shard in ["0/2", "1/2"] {
+        let o = hitex(&[
+            "terrain",
+            "build",
+            "--image",
+            &image,
+            "--dem",
+            &dem,
+            "--profile",
+            "mercator",
+            "-o",
+            &s(&folder),
+            "--shard",
+            shard,
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    assert!(folder.join("13/3302/3913.png").exists(), "global TMS tiles: Olinda's zoom-13 tile");
+    let xml = std::fs::read_to_string(folder.join("tilemapresource.xml")).unwrap();
+    assert!(xml.contains("profile=\"global-mercator\"") && xml.contains("EPSG:3857"), "{xml}");
+    let o = hitex(&["terrain", "pack", &s(&folder), "-o", &s(&packed)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (a, b) = (std::fs::read(&file).unwrap(), std::fs::read(&packed).unwrap());
+    assert!(a.len() > 100_000 && b.len() > 100_000);
+    // the same view over both stores: above the imagery's centre, 3 km up, 40° below the horizon,
+    // heading 30° from UTM grid north; the mercator flight's key names the same ground point and
+    // direction, computed here through the coordinate library
+    let meta = |p: std::path::PathBuf| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let (ml, mm) = (meta(local.join("metadata.json")), meta(folder.join("metadata.json")));
+    let f = |v: &serde_json::Value, k: &str, i: usize| v[k][i].as_f64().unwrap();
+    let centre = [
+        f(&ml, "origin", 0) + ml["width"].as_f64().unwrap() / 2.0 * f(&ml, "pixel", 0),
+        f(&ml, "origin", 1) - ml["height"].as_f64().unwrap() / 2.0 * f(&ml, "pixel", 1),
+    ];
+    let utm = hitex_io::crs::Crs::from_epsg(31985).unwrap();
+    let merc = hitex_io::crs::Crs::from_epsg(3857).unwrap();
+    let mut q = [centre, [centre[0], centre[1] + 100.0]];
+    utm.transform(&merc, &mut q);
+    let convergence = (q[1][0] - q[0][0]).atan2(q[1][1] - q[0][1]).to_degrees();
+    let px = f(&mm, "pixel", 0);
+    let data = [f(&mm, "origin", 0) + f(&mm, "offset", 0) * px, f(&mm, "origin", 1) - f(&mm, "offset", 1) * px];
+    let (mx, my) = (
+        (q[0][0] - data[0]) / px / mm["width"].as_f64().unwrap(),
+        (data[1] - q[0][1]) / px / mm["height"].as_f64().unwrap(),
+    );
+    let key = |x: f64, y: f64, altitude: f64, pitch: f64, heading: f64| {
+        format!("[[key]]\nt = 0\nx = {x}\ny = {y}\naltitude = {altitude}\npitch = {pitch}\nheading = {heading}\n")
+    };
+    let mut n = 0;
+    let mut fly = |store: &std::path::Path, key: String| {
+        n += 1;
+        let (path, frames) = (d.join(format!("k{n}.toml")), d.join(format!("f{n}")));
+        std::fs::write(&path, key).unwrap();
+        let o = hitex(&[
+            "terrain",
+            "fly",
+            &s(store),
+            "--path",
+            &s(&path),
+            "--frames",
+            "1",
+            "--size",
+            "256x160",
+            "--wait",
+            "--backend",
+            "cpu",
+            "-o",
+            &s(&frames),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let text = String::from_utf8_lossy(&o.stdout).to_string();
+        assert!(text.contains("relief from"), "{text}");
+        image::open(frames.join("frame-0000.png")).unwrap().to_rgba8().into_raw()
+    };
+    let psnr = |a: &[u8], b: &[u8]| hitex_render::compare::compare_rgba(a, b).0.psnr_db;
+    // straight down from 6 km: the ground registered within a texel
+    let nadir = fly(&local, key(0.5, 0.5, 6000.0, 90.0, 30.0));
+    let merc_nadir = fly(&file, key(mx, my, 6000.0, 90.0, 30.0 + convergence));
+    let packed_nadir = fly(&packed, key(mx, my, 6000.0, 90.0, 30.0 + convergence));
+    assert_eq!(merc_nadir, packed_nadir, "the packed file flies as the built one");
+    // the same view 60 m (about 3 texels) east: what a misregistration would cost
+    let shifted =
+        fly(&file, key(mx + 60.0 / 18.92 / mm["width"].as_f64().unwrap(), my, 6000.0, 90.0, 30.0 + convergence));
+    let (aligned, off) = (psnr(&nadir, &merc_nadir), psnr(&nadir, &shifted));
+    // oblique, 3 km up, 40° below the horizon over the relief
+    let oblique = psnr(
+        &fly(&local, key(0.5, 0.5, 3000.0, 40.0, 30.0)),
+        &fly(&file, key(mx, my, 3000.0, 40.0, 30.0 + convergence)),
+    );
+    println!(
+        "local store vs web-mercator MBTiles, same view: nadir {aligned:.1} dB (60 m off: {off:.1} dB), oblique {oblique:.1} dB"
+    );
+    // the same ground seen through two resamplings (UTM 28.5 m texels, mercator 18.9 m)
+    assert!(aligned > 28.0 && aligned > off + 3.0, "nadir {aligned} dB, 60 m off {off} dB");
+    assert!(oblique > 19.0, "oblique {oblique} dB");
+    // the pieces a user gets wrong, one line each
+    let o = hitex(&["terrain", "build", "--procedural", "300x300", "-o", &s(&d.join("p.mbtiles"))]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no place on Earth"), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = hitex(&[
+        "terrain",
+        "build",
+        "--image",
+        &image,
+        "--format",
+        "mbtiles",
+        "--profile",
+        "local",
+        "-o",
+        &s(&d.join("l.mbtiles")),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let o = hitex(&["terrain", "pack", &s(&local), "-o", &s(&d.join("x.mbtiles"))]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("local pyramid"), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = hitex(&["terrain", "build", "--image", &image, "-o", &s(&d.join("s.mbtiles")), "--shard", "0/2"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("terrain pack"), "{}", String::from_utf8_lossy(&o.stderr));
+}

@@ -70,11 +70,12 @@ pub struct View {
 /// view of `fov_deg` over `pixels` pixels: the square of `per_side` maps of
 /// each level around the eye (eq. (7)), for every level coarse enough that
 /// its texels are not smaller than a pixel's footprint at the nadir
-/// (eq. (6) at x = 0), clipped to the maps holding data (`data_tiles(z)`).
+/// (eq. (6) at x = 0), clipped to the maps holding data (`data_range(z)`:
+/// first column, first row, one past the last of each).
 pub fn active_maps(
     levels: u32,
     map_texels: u32,
-    data_tiles: impl Fn(u32) -> (u32, u32),
+    data_range: impl Fn(u32) -> [u32; 4],
     eye: [f64; 2],
     altitude: f64,
     view: View,
@@ -91,14 +92,14 @@ pub fn active_maps(
     let mut out = Vec::new();
     for z in 0..=z_max {
         let span = map_texels as f64 * (1u64 << (levels - 1 - z)) as f64;
-        let (cols, rows) = data_tiles(z);
+        let [c0, r0, c1, r1] = data_range(z);
         let (cx, cy) = (eye[0] / span, eye[1] / span);
         let half = per_side as f64 / 2.0;
         let (x0, y0) = ((cx - half).floor(), (cy - half).floor());
         for j in 0..per_side as i64 {
             for i in 0..per_side as i64 {
                 let (x, y) = (x0 as i64 + i, y0 as i64 + j);
-                if x >= 0 && y >= 0 && (x as u64) < cols as u64 && (y as u64) < rows as u64 {
+                if x >= c0 as i64 && y >= r0 as i64 && x < c1 as i64 && y < r1 as i64 {
                     out.push(MapKey { z, x: x as u32, y: y as u32 });
                 }
             }
@@ -291,10 +292,10 @@ mod tests {
         })
     }
 
-    fn tiles(levels: u32) -> impl Fn(u32) -> (u32, u32) {
+    fn tiles(levels: u32) -> impl Fn(u32) -> [u32; 4] {
         move |z| {
             let n = 1u32 << z.min(levels - 1);
-            (n, n)
+            [0, 0, n, n]
         }
     }
 

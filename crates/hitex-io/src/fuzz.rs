@@ -46,11 +46,14 @@ pub enum Target {
     Points,
     /// OpenEXR images of BTF image sets, decoded to linear sRGB.
     Exr,
+    /// An MBTiles store: the bytes as a file, opened, its level-0 map and
+    /// its DEM read.
+    Mbtiles,
 }
 
 impl Target {
     /// Every target.
-    pub const ALL: [Target; 16] = [
+    pub const ALL: [Target; 17] = [
         Target::Iges,
         Target::ObjFreeform,
         Target::NurbsJson,
@@ -67,6 +70,7 @@ impl Target {
         Target::Step,
         Target::Points,
         Target::Exr,
+        Target::Mbtiles,
     ];
 
     /// The target's name: its folder under `fuzz/` and its fuzz binary.
@@ -88,6 +92,7 @@ impl Target {
             Target::Step => "step",
             Target::Points => "points",
             Target::Exr => "exr",
+            Target::Mbtiles => "mbtiles",
         }
     }
 
@@ -156,6 +161,21 @@ pub fn run(target: Target, data: &[u8]) -> bool {
         Target::Step => crate::step::parse_step(data, "fuzz.stp", &crate::step::StepOptions::default()).is_ok(),
         Target::Points => crate::points::parse_points(&text(), data.first() == Some(&b'{')).is_ok(),
         Target::Exr => crate::btf_images::decode_exr_image(data, Path::new("fuzz.exr")).is_ok(),
+        Target::Mbtiles => {
+            // SQLite opens files, not bytes
+            static RUN: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+            let k = RUN.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let path = std::env::temp_dir().join(format!("hitex-fuzz-{}-{k}.mbtiles", std::process::id()));
+            if std::fs::write(&path, data).is_err() {
+                return false;
+            }
+            let ok = match crate::gst::Store::open(&path) {
+                Ok(store) => store.read_tile(0, 0, 0).is_ok() && store.dem().is_ok(),
+                Err(_) => false,
+            };
+            let _ = std::fs::remove_file(&path);
+            ok
+        }
     }
 }
 

@@ -127,8 +127,14 @@ fn user_defined_tm(keys: &[u16], doubles: &[f64]) -> Option<String> {
 /// or, for a local transverse Mercator, as user-defined GeoKeys; nodata as
 /// GDAL_NODATA.
 pub fn write_dem_geotiff(path: &Path, r: &GeoRaster, crs: &crate::crs::Crs) -> Result<(), IoError> {
+    let bytes = dem_geotiff_bytes(r, crs).map_err(|m| IoError::Write { path: path.to_path_buf(), message: m })?;
+    crate::write_atomic(path, &bytes)
+}
+
+/// The GeoTIFF file [`write_dem_geotiff`] writes, in memory.
+pub fn dem_geotiff_bytes(r: &GeoRaster, crs: &crate::crs::Crs) -> Result<Vec<u8>, String> {
     use tiff::encoder::{TiffEncoder, colortype::Gray32Float};
-    let werr = |m: String| IoError::Write { path: path.to_path_buf(), message: m };
+    let werr = |m: String| m;
     let mut keys: Vec<u16> = Vec::new();
     let mut doubles: Vec<f64> = Vec::new();
     let geographic = crs.is_geographic();
@@ -175,7 +181,7 @@ pub fn write_dem_geotiff(path: &Path, r: &GeoRaster, crs: &crate::crs::Crs) -> R
         img.write_data(&band)
     };
     encode(&mut buf).map_err(|e| werr(e.to_string()))?;
-    crate::write_atomic(path, &buf.into_inner())
+    Ok(buf.into_inner())
 }
 
 /// Band 1 of `r` on a grid `k` times coarser: each post the mean of the

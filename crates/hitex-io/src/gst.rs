@@ -227,13 +227,59 @@ pub struct StoreMeta {
     pub crs: String,
     /// Where the imagery came from.
     pub source: String,
+    /// Finest-level texels from the grid's north-west corner (`origin`) to
+    /// the data's (0, 0 for a pyramid anchored at its data).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub offset: [u32; 2],
+    /// The tiling the maps belong to: a local pyramid, or the global
+    /// web-mercator one (EPSG:3857, the tiles web maps load).
+    #[serde(default, skip_serializing_if = "Profile::is_local")]
+    pub profile: Profile,
+    /// The level-0 map's place in the global tiling: zoom, column, row from
+    /// the north (0, 0, 0 for a local pyramid).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub tiles: [u32; 3],
+}
+
+fn is_zero<const N: usize>(v: &[u32; N]) -> bool {
+    v.iter().all(|&x| x == 0)
+}
+
+/// How a store's maps are tiled.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Profile {
+    /// Level 0 is one map over the source, in the source's CRS.
+    #[default]
+    Local,
+    /// The global web-mercator tiles (EPSG:3857, OSGeo TMS
+    /// `global-mercator`): level z is zoom `tiles[0] + z`.
+    Mercator,
+}
+
+impl Profile {
+    fn is_local(&self) -> bool {
+        *self == Profile::Local
+    }
+}
+
+/// Half the web-mercator world's side, metres (π × 6,378,137).
+pub const MERCATOR_HALF: f64 = std::f64::consts::PI * MERCATOR_RADIUS;
+/// The web-mercator sphere's radius, metres.
+pub const MERCATOR_RADIUS: f64 = 6_378_137.0;
+/// Deepest web-mercator zoom a store is built at (about 2 cm a texel).
+pub const MAX_MERCATOR_ZOOM: u32 = 23;
+
+/// Levels of a pyramid whose finest level spans `w`×`h` texels.
+fn levels_for(w: u64, h: u64) -> u32 {
+    let maps = w.div_ceil(TILE as u64).max(h.div_ceil(TILE as u64)).max(1);
+    1 + maps.next_power_of_two().trailing_zeros()
 }
 
 impl StoreMeta {
     /// The metadata of a pyramid over a `width`×`height` source.
     pub fn for_source(width: u32, height: u32, origin: [f64; 2], pixel: [f64; 2], crs: &str, source: &str) -> Self {
-        let maps = width.div_ceil(TILE).max(height.div_ceil(TILE)).max(1);
-        let levels = 1 + maps.next_power_of_two().trailing_zeros();
+        let levels = levels_for(width as u64, height as u64);
         Self {
             format: "hitex-gst".into(),
             version: 1,
@@ -245,7 +291,106 @@ impl StoreMeta {
             pixel,
             crs: crs.into(),
             source: source.into(),
+            offset: [0, 0],
+            profile: Profile::Local,
+            tiles: [0, 0, 0],
         }
+    }
+
+    /// The metadata of a web-mercator pyramid at `zoom` over the EPSG:3857
+    /// extent `bounds` (x min, y min, x max, y max, metres): level 0 is the
+    /// deepest-zoom tile holding the whole extent, the finest level is `zoom`.
+    pub fn mercator(bounds: [f64; 4], zoom: u32, source: &str) -> Result<Self, String> {
+        if zoom > MAX_MERCATOR_ZOOM {
+            return Err(format!("zoom {zoom} is beyond {MAX_MERCATOR_ZOOM}"));
+        }
+        let [x0, y0, x1, y1] = bounds;
+        if !bounds.iter().all(|v| v.is_finite()) || x1 <= x0 || y1 <= y0 {
+            return Err(format!("no web-mercator extent ({x0}, {y0}) to ({x1}, {y1})"));
+        }
+        let side = TILE as u64 * (1u64 << zoom);
+        let pixel = 2.0 * MERCATOR_HALF / side as f64;
+        let clamp = |v: f64| v.clamp(0.0, side as f64);
+        let (c0, c1) = (clamp(((x0 + MERCATOR_HALF) / pixel).floor()), clamp(((x1 + MERCATOR_HALF) / pixel).ceil()));
+        let (r0, r1) = (clamp(((MERCATOR_HALF - y1) / pixel).floor()), clamp(((MERCATOR_HALF - y0) / pixel).ceil()));
+        let (c0, c1, r0, r1) = (c0 as u64, (c1 as u64).max(c0 as u64 + 1), r0 as u64, (r1 as u64).max(r0 as u64 + 1));
+        let (w, h) = (c1 - c0, r1 - r0);
+        if w > MAX_SOURCE_SIDE as u64 || h > MAX_SOURCE_SIDE as u64 {
+            return Err(format!("{w}x{h} texels at zoom {zoom}, beyond {MAX_SOURCE_SIDE} a side"));
+        }
+        // the smallest k whose zoom − k tile holds the extent
+        let k = (0..=zoom)
+            .find(|&k| {
+                let span = TILE as u64 * (1u64 << k);
+                c0 / span == (c1 - 1) / span && r0 / span == (r1 - 1) / span
+            })
+            .unwrap_or(zoom);
+        let span = TILE as u64 * (1u64 << k);
+        if span > MAX_SOURCE_SIDE as u64 {
+            return Err(format!(
+                "the extent straddles the edge of zoom-{} tiles: its pyramid would be {span} texels across at zoom {zoom}, \
+                 beyond {MAX_SOURCE_SIDE}; build it with the local profile",
+                zoom - k
+            ));
+        }
+        let (tx, ty) = (c0 / span, r0 / span);
+        let origin = [-MERCATOR_HALF + (tx * span) as f64 * pixel, MERCATOR_HALF - (ty * span) as f64 * pixel];
+        Ok(Self {
+            format: "hitex-gst".into(),
+            version: 1,
+            tile_size: TILE,
+            width: w as u32,
+            height: h as u32,
+            levels: k + 1,
+            origin,
+            pixel: [pixel, pixel],
+            crs: "EPSG:3857".into(),
+            source: source.into(),
+            offset: [(c0 - tx * span) as u32, (r0 - ty * span) as u32],
+            profile: Profile::Mercator,
+            tiles: [zoom - k, tx as u32, ty as u32],
+        })
+    }
+
+    /// World coordinates of the data's north-west corner.
+    pub fn data_origin(&self) -> [f64; 2] {
+        [self.origin[0] + self.offset[0] as f64 * self.pixel[0], self.origin[1] - self.offset[1] as f64 * self.pixel[1]]
+    }
+
+    /// Metres on the ground per finest texel along x: the pixel size, or
+    /// for web mercator the pixel size times the cosine of the data's
+    /// central latitude (the projection's scale there).
+    pub fn ground_pixel(&self) -> f64 {
+        match self.profile {
+            Profile::Local => self.pixel[0],
+            Profile::Mercator => {
+                let y = self.data_origin()[1] - self.height as f64 / 2.0 * self.pixel[1];
+                self.pixel[0] * (y / MERCATOR_RADIUS).sinh().atan().cos()
+            }
+        }
+    }
+
+    /// The data's extent in longitude and latitude (west, south, east,
+    /// north, degrees) for a web-mercator store.
+    pub fn lon_lat_bounds(&self) -> Option<[f64; 4]> {
+        if self.profile != Profile::Mercator {
+            return None;
+        }
+        let [x0, y1] = self.data_origin();
+        let (x1, y0) = (x0 + self.width as f64 * self.pixel[0], y1 - self.height as f64 * self.pixel[1]);
+        let lon = |x: f64| (x / MERCATOR_RADIUS).to_degrees();
+        let lat = |y: f64| (y / MERCATOR_RADIUS).sinh().atan().to_degrees();
+        Some([lon(x0), lat(y0), lon(x1), lat(y1)])
+    }
+
+    /// The global zoom of level `z` (equal to `z` for a local pyramid).
+    pub fn zoom(&self, z: u32) -> u32 {
+        self.tiles[0] + z
+    }
+
+    /// The global column and row (from the north) of map (x, y) of level `z`.
+    pub fn global_tile(&self, z: u32, x: u32, y: u32) -> (u32, u32) {
+        ((self.tiles[1] << z) + x, (self.tiles[2] << z) + y)
     }
 
     /// Finest-level texels per texel of level `z`.
@@ -253,41 +398,77 @@ impl StoreMeta {
         1u64 << (self.levels - 1 - z.min(self.levels - 1))
     }
 
-    /// Maps holding data at level `z` (columns, rows from the north).
-    pub fn data_tiles(&self, z: u32) -> (u32, u32) {
+    /// Maps holding data at level `z`: first column, first row (from the
+    /// north), and one past the last of each.
+    pub fn data_range(&self, z: u32) -> [u32; 4] {
         let span = TILE as u64 * self.scale(z);
-        ((self.width as u64).div_ceil(span) as u32, (self.height as u64).div_ceil(span) as u32)
+        let (ox, oy) = (self.offset[0] as u64, self.offset[1] as u64);
+        [
+            (ox / span) as u32,
+            (oy / span) as u32,
+            (ox + self.width as u64).div_ceil(span) as u32,
+            (oy + self.height as u64).div_ceil(span) as u32,
+        ]
     }
 
-    /// The TMS file of map (x, y-from-north) at level `z`: `z/x/y_south.png`.
+    /// The maps of level `z` holding data, row by row.
+    pub fn data_maps(&self, z: u32) -> impl Iterator<Item = (u32, u32)> {
+        let [x0, y0, x1, y1] = self.data_range(z);
+        (y0..y1).flat_map(move |y| (x0..x1).map(move |x| (x, y)))
+    }
+
+    /// How many maps of level `z` hold data.
+    pub fn data_count(&self, z: u32) -> u64 {
+        let [x0, y0, x1, y1] = self.data_range(z);
+        (x1 - x0) as u64 * (y1 - y0) as u64
+    }
+
+    /// The TMS row (counted from the south) of map row `y` (from the north) of level `z`.
+    pub fn tms_row(&self, z: u32, y: u32) -> u32 {
+        let (_, gy) = self.global_tile(z, 0, y);
+        ((1u64 << self.zoom(z)) - 1 - gy as u64) as u32
+    }
+
+    /// The TMS file of map (x, y-from-north) at level `z`:
+    /// `zoom/column/row_from_south.png`.
     pub fn tile_path(&self, root: &Path, z: u32, x: u32, y: u32) -> PathBuf {
-        let y_tms = (1u32 << z) - 1 - y;
-        root.join(z.to_string()).join(x.to_string()).join(format!("{y_tms}.png"))
+        let (gx, _) = self.global_tile(z, x, y);
+        root.join(self.zoom(z).to_string()).join(gx.to_string()).join(format!("{}.png", self.tms_row(z, y)))
     }
 
-    /// Bytes of all maps of all levels (RGBA8).
+    /// Maps of all levels.
     pub fn total_tiles(&self) -> u64 {
-        (0..self.levels).map(|z| self.data_tiles(z)).map(|(c, r)| c as u64 * r as u64).sum()
+        (0..self.levels).map(|z| self.data_count(z)).sum()
     }
 
-    /// `tilemapresource.xml` (OSGeo TMS 1.0.0), the pyramid anchored at the
-    /// source's north-west corner and padded to 2^z maps per side.
+    /// `tilemapresource.xml` (OSGeo TMS 1.0.0): a local pyramid anchored at
+    /// its grid's north-west corner and padded to 2^z maps per side, or the
+    /// `global-mercator` profile.
     pub fn tms_xml(&self) -> String {
-        let side = TILE as f64 * (1u64 << (self.levels - 1)) as f64;
-        let (minx, maxy) = (self.origin[0], self.origin[1]);
-        let (maxx, miny) = (minx + side * self.pixel[0], maxy - side * self.pixel[1]);
+        let ([minx, maxy], [w, h]) = match self.profile {
+            // the padded grid
+            Profile::Local => (self.origin, [TILE as f64 * (1u64 << (self.levels - 1)) as f64; 2]),
+            // the data
+            Profile::Mercator => (self.data_origin(), [self.width as f64, self.height as f64]),
+        };
+        let (maxx, miny) = (minx + w * self.pixel[0], maxy - h * self.pixel[1]);
+        let (profile, ox, oy) = match self.profile {
+            Profile::Local => ("none", minx, miny),
+            Profile::Mercator => ("global-mercator", -MERCATOR_HALF, -MERCATOR_HALF),
+        };
         let mut s = String::from("<?xml version=\"1.0\" encoding=\"utf-8\"?>\n");
         s += "<TileMap version=\"1.0.0\" tilemapservice=\"http://tms.osgeo.org/1.0.0\">\n";
         s += "  <Title>hitex geospecific texture pyramid</Title>\n";
         s += &format!("  <Abstract>{}</Abstract>\n", xml_escape(&self.source));
         s += &format!("  <SRS>{}</SRS>\n", xml_escape(&self.crs));
         s += &format!("  <BoundingBox minx=\"{minx}\" miny=\"{miny}\" maxx=\"{maxx}\" maxy=\"{maxy}\"/>\n");
-        s += &format!("  <Origin x=\"{minx}\" y=\"{miny}\"/>\n");
+        s += &format!("  <Origin x=\"{ox}\" y=\"{oy}\"/>\n");
         s += &format!("  <TileFormat width=\"{TILE}\" height=\"{TILE}\" mime-type=\"image/png\" extension=\"png\"/>\n");
-        s += "  <TileSets profile=\"none\">\n";
+        s += &format!("  <TileSets profile=\"{profile}\">\n");
         for z in 0..self.levels {
             let upp = self.pixel[0] * self.scale(z) as f64;
-            s += &format!("    <TileSet href=\"{z}\" units-per-pixel=\"{upp}\" order=\"{z}\"/>\n");
+            let zoom = self.zoom(z);
+            s += &format!("    <TileSet href=\"{zoom}\" units-per-pixel=\"{upp}\" order=\"{zoom}\"/>\n");
         }
         s += "  </TileSets>\n</TileMap>\n";
         s
@@ -329,12 +510,43 @@ pub struct BuildReport {
 /// The shard owning map (x, y) of level `z ≥ split`.
 fn owner(meta: &StoreMeta, split: u32, z: u32, x: u32, y: u32, n: u32) -> u32 {
     let k = z - split;
-    let (cols, _) = meta.data_tiles(split);
-    (((y >> k) as u64 * cols as u64 + (x >> k) as u64) % n as u64) as u32
+    let [x0, y0, x1, _] = meta.data_range(split);
+    ((((y >> k) - y0) as u64 * (x1 - x0) as u64 + ((x >> k) - x0) as u64) % n as u64) as u32
 }
 
-/// Builds the pyramid of `src` into `out` (created if needed), calling
-/// `progress(done, total)` as maps are written (from worker threads).
+/// Where a build puts its maps and reads them back: a folder of PNG files
+/// ([`FolderSink`]) or one MBTiles file ([`crate::mbtiles::MbTiles`]).
+pub trait TileSink: Sync {
+    /// Stores the PNG file of map (x, y) of level `z`.
+    fn put(&self, meta: &StoreMeta, z: u32, x: u32, y: u32, png: &[u8]) -> Result<(), IoError>;
+    /// The RGBA8 texels of map (x, y) of level `z`, stored before.
+    fn get(&self, meta: &StoreMeta, z: u32, x: u32, y: u32) -> Result<Vec<u8>, IoError>;
+    /// Whether map (x, y) of level `z` is stored.
+    fn has(&self, meta: &StoreMeta, z: u32, x: u32, y: u32) -> bool;
+}
+
+/// The folder form of a store: `zoom/column/row.png` files (TMS rows).
+pub struct FolderSink<'a>(pub &'a Path);
+
+impl TileSink for FolderSink<'_> {
+    fn put(&self, meta: &StoreMeta, z: u32, x: u32, y: u32, png: &[u8]) -> Result<(), IoError> {
+        let path = meta.tile_path(self.0, z, x, y);
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir)
+                .map_err(|e| IoError::Write { path: dir.to_path_buf(), message: e.to_string() })?;
+        }
+        write_atomic(&path, png)
+    }
+    fn get(&self, meta: &StoreMeta, z: u32, x: u32, y: u32) -> Result<Vec<u8>, IoError> {
+        read_tile(meta, self.0, z, x, y)
+    }
+    fn has(&self, meta: &StoreMeta, z: u32, x: u32, y: u32) -> bool {
+        meta.tile_path(self.0, z, x, y).exists()
+    }
+}
+
+/// Builds the pyramid of `src` into the folder `out` (created if needed),
+/// calling `progress(done, total)` as maps are written (from worker threads).
 pub fn build_store(
     src: &dyn TileSource,
     meta: &StoreMeta,
@@ -342,8 +554,24 @@ pub fn build_store(
     opts: BuildOptions,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<BuildReport, IoError> {
-    let (i, n) = opts.shard;
     let werr = |p: &Path, m: String| IoError::Write { path: p.to_path_buf(), message: m };
+    check_build(src, meta, opts)?;
+    crate::image_io::create_output_dir(out)?;
+    // the description is written last: a build that fails part-way leaves no store that opens as complete
+    let described = out.join("metadata.json");
+    match std::fs::remove_file(&described) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(werr(&described, e.to_string())),
+        _ => {}
+    }
+    let json = serde_json::to_string_pretty(meta).map_err(|e| werr(out, e.to_string()))?;
+    let report = build_into(src, meta, &FolderSink(out), opts, progress)?;
+    write_atomic(&out.join("tilemapresource.xml"), meta.tms_xml().as_bytes())?;
+    write_atomic(&described, json.as_bytes())?;
+    Ok(report)
+}
+
+fn check_build(src: &dyn TileSource, meta: &StoreMeta, opts: BuildOptions) -> Result<(), IoError> {
+    let (i, n) = opts.shard;
     if n == 0 || i >= n {
         return Err(IoError::Core(hitex_core::CoreError::OutOfRange {
             key: "shard".into(),
@@ -357,107 +585,100 @@ pub fn build_store(
             meta.width, meta.height
         ))));
     }
-    crate::image_io::create_output_dir(out)?;
-    // the description is written last: a build that fails part-way leaves no store that opens as complete
-    let described = out.join("metadata.json");
-    match std::fs::remove_file(&described) {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(werr(&described, e.to_string())),
-        _ => {}
-    }
-    let json = serde_json::to_string_pretty(meta).map_err(|e| werr(out, e.to_string()))?;
+    Ok(())
+}
+
+/// Builds this shard's maps of the pyramid of `src` into `sink` (and the
+/// levels above the split when the split level is then complete).
+pub fn build_into(
+    src: &dyn TileSource,
+    meta: &StoreMeta,
+    sink: &dyn TileSink,
+    opts: BuildOptions,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<BuildReport, IoError> {
+    check_build(src, meta, opts)?;
+    let (i, n) = opts.shard;
     // split level: the coarsest with at least n maps
-    let split = (0..meta.levels)
-        .find(|&z| {
-            let (c, r) = meta.data_tiles(z);
-            c as u64 * r as u64 >= n as u64
-        })
-        .unwrap_or(meta.levels - 1);
+    let split = (0..meta.levels).find(|&z| meta.data_count(z) >= n as u64).unwrap_or(meta.levels - 1);
     let mine = |z: u32, x: u32, y: u32| owner(meta, split, z, x, y, n) == i;
     let mut report = BuildReport { levels: meta.levels, split_level: split, ..Default::default() };
-    let total: u64 = (split..meta.levels)
-        .map(|z| {
-            let (c, r) = meta.data_tiles(z);
-            (0..r).flat_map(|y| (0..c).map(move |x| (x, y))).filter(|&(x, y)| mine(z, x, y)).count() as u64
-        })
-        .sum();
-    report.other_shards = (split..meta.levels)
-        .map(|z| {
-            let (c, r) = meta.data_tiles(z);
-            c as u64 * r as u64
-        })
-        .sum::<u64>()
-        - total;
+    let total: u64 =
+        (split..meta.levels).map(|z| meta.data_maps(z).filter(|&(x, y)| mine(z, x, y)).count() as u64).sum();
+    report.other_shards = (split..meta.levels).map(|z| meta.data_count(z)).sum::<u64>() - total;
     let done = std::sync::atomic::AtomicU64::new(0);
     let tick = || progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, total);
     // finest level from the source, then each coarser level from its children
     for z in (split..meta.levels).rev() {
-        build_level(src, meta, out, z, &|x, y| mine(z, x, y), &tick)?;
-        let (c, r) = meta.data_tiles(z);
-        report.written +=
-            (0..r).flat_map(|y| (0..c).map(move |x| (x, y))).filter(|&(x, y)| mine(z, x, y)).count() as u64;
+        build_level(src, meta, sink, z, &|x, y| mine(z, x, y), &tick)?;
+        report.written += meta.data_maps(z).filter(|&(x, y)| mine(z, x, y)).count() as u64;
     }
     // the levels above the split, once every map of the split level exists
-    let (c, r) = meta.data_tiles(split);
-    let complete = (0..r).all(|y| (0..c).all(|x| meta.tile_path(out, split, x, y).exists()));
+    let complete = meta.data_maps(split).all(|(x, y)| sink.has(meta, split, x, y));
     if complete && split > 0 {
         for z in (0..split).rev() {
-            build_level(src, meta, out, z, &|_, _| true, &|| {})?;
-            let (c, r) = meta.data_tiles(z);
-            report.written += c as u64 * r as u64;
+            build_level(src, meta, sink, z, &|_, _| true, &|| {})?;
+            report.written += meta.data_count(z);
         }
         report.built_top = true;
     }
-    write_atomic(&out.join("tilemapresource.xml"), meta.tms_xml().as_bytes())?;
-    write_atomic(&described, json.as_bytes())?;
     Ok(report)
 }
 
 fn build_level(
     src: &dyn TileSource,
     meta: &StoreMeta,
-    out: &Path,
+    sink: &dyn TileSink,
     z: u32,
     mine: &(dyn Fn(u32, u32) -> bool + Sync),
     tick: &(dyn Fn() + Sync),
 ) -> Result<(), IoError> {
-    let (cols, rows) = meta.data_tiles(z);
     let finest = z == meta.levels - 1;
-    let jobs: Vec<(u32, u32)> =
-        (0..rows).flat_map(|y| (0..cols).map(move |x| (x, y))).filter(|&(x, y)| mine(x, y)).collect();
+    let jobs: Vec<(u32, u32)> = meta.data_maps(z).filter(|&(x, y)| mine(x, y)).collect();
     jobs.par_iter().try_for_each(|&(x, y)| -> Result<(), IoError> {
-        let rgba = if finest { finest_tile(src, x, y)? } else { parent_tile(meta, out, z, x, y)? };
-        let path = meta.tile_path(out, z, x, y);
-        if let Some(dir) = path.parent() {
-            std::fs::create_dir_all(dir)
-                .map_err(|e| IoError::Write { path: dir.to_path_buf(), message: e.to_string() })?;
-        }
-        crate::save_png(&path, TILE, TILE, &rgba)?;
+        let rgba = if finest { finest_tile(src, meta.offset, x, y)? } else { parent_tile(meta, sink, z, x, y)? };
+        let png = encode_png(&rgba)
+            .map_err(|m| IoError::Write { path: meta.tile_path(Path::new(""), z, x, y), message: m })?;
+        sink.put(meta, z, x, y, &png)?;
         tick();
         Ok(())
     })
 }
 
-/// Map (x, y) of the finest level: the source window, transparent outside.
+/// The PNG file of a map's RGBA8 texels.
+pub fn encode_png(rgba: &[u8]) -> Result<Vec<u8>, String> {
+    use image::ImageEncoder;
+    let mut buf = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut buf)
+        .write_image(rgba, TILE, TILE, image::ExtendedColorType::Rgba8)
+        .map_err(|e| e.to_string())?;
+    Ok(buf)
+}
+
 /// The PNG size of the finest map at the source's centre: a sample for
 /// estimating a whole store's disk need before building it.
 pub fn sample_map_bytes(src: &dyn TileSource) -> Result<u64, IoError> {
     let (w, h) = src.size();
-    let rgba = finest_tile(src, (w / 2) / TILE, (h / 2) / TILE)?;
-    let mut buf = Vec::new();
-    {
-        use image::ImageEncoder;
-        image::codecs::png::PngEncoder::new(&mut buf)
-            .write_image(&rgba, TILE, TILE, image::ExtendedColorType::Rgba8)
-            .map_err(|e| IoError::Core(hitex_core::CoreError::InvalidImage(format!("{}: {e}", src.describe()))))?;
-    }
+    let rgba = finest_tile(src, [0, 0], (w / 2) / TILE, (h / 2) / TILE)?;
+    let buf = encode_png(&rgba)
+        .map_err(|e| IoError::Core(hitex_core::CoreError::InvalidImage(format!("{}: {e}", src.describe()))))?;
     Ok(buf.len() as u64)
 }
 
-fn finest_tile(src: &dyn TileSource, x: u32, y: u32) -> Result<Vec<u8>, IoError> {
+/// Map (x, y) of the finest level of a grid whose data starts `offset`
+/// texels from its corner: the source window, transparent outside.
+fn finest_tile(src: &dyn TileSource, offset: [u32; 2], x: u32, y: u32) -> Result<Vec<u8>, IoError> {
     let (w, h) = src.size();
-    let (x0, y0) = (x * TILE, y * TILE);
-    let (cw, ch) = (TILE.min(w - x0), TILE.min(h - y0));
-    let window = src.read(x0, y0, cw, ch)?;
+    let mut out = vec![0u8; (TILE * TILE * 4) as usize];
+    // the map's texels in the source's coordinates
+    let (dx, dy) = (x as i64 * TILE as i64 - offset[0] as i64, y as i64 * TILE as i64 - offset[1] as i64);
+    let (a0, a1) = (dx.max(0), (dx + TILE as i64).min(w as i64));
+    let (b0, b1) = (dy.max(0), (dy + TILE as i64).min(h as i64));
+    if a1 <= a0 || b1 <= b0 {
+        return Ok(out);
+    }
+    let (cw, ch) = ((a1 - a0) as u32, (b1 - b0) as u32);
+    let window = src.read(a0 as u32, b0 as u32, cw, ch)?;
     if window.len() != (cw * ch * 4) as usize {
         return Err(IoError::Core(hitex_core::CoreError::InvalidImage(format!(
             "{}: window of {cw}x{ch} returned {} bytes",
@@ -465,11 +686,11 @@ fn finest_tile(src: &dyn TileSource, x: u32, y: u32) -> Result<Vec<u8>, IoError>
             window.len()
         ))));
     }
-    let mut out = vec![0u8; (TILE * TILE * 4) as usize];
-    for row in 0..ch {
-        let d = (row * TILE * 4) as usize;
-        let s = (row * cw * 4) as usize;
-        out[d..d + (cw * 4) as usize].copy_from_slice(&window[s..s + (cw * 4) as usize]);
+    let (px, py) = ((a0 - dx) as usize, (b0 - dy) as usize);
+    for row in 0..ch as usize {
+        let d = ((py + row) * TILE as usize + px) * 4;
+        let s = row * cw as usize * 4;
+        out[d..d + cw as usize * 4].copy_from_slice(&window[s..s + cw as usize * 4]);
     }
     Ok(out)
 }
@@ -507,16 +728,16 @@ pub fn decode_tile(bytes: &[u8], path: &Path) -> Result<Vec<u8>, IoError> {
 
 /// Map (x, y) of level z: the 2×2 box filter of its children at z + 1, in
 /// linear light, weighted by alpha; children outside the data are empty.
-fn parent_tile(meta: &StoreMeta, root: &Path, z: u32, x: u32, y: u32) -> Result<Vec<u8>, IoError> {
-    let (cc, cr) = meta.data_tiles(z + 1);
+fn parent_tile(meta: &StoreMeta, sink: &dyn TileSink, z: u32, x: u32, y: u32) -> Result<Vec<u8>, IoError> {
+    let [c0, r0, c1, r1] = meta.data_range(z + 1);
     let lut = decode_table(ColorSpace::Srgb);
     let mut out = vec![0u8; (TILE * TILE * 4) as usize];
     for (dx, dy) in [(0u32, 0u32), (1, 0), (0, 1), (1, 1)] {
         let (kx, ky) = (2 * x + dx, 2 * y + dy);
-        if kx >= cc || ky >= cr {
+        if kx < c0 || ky < r0 || kx >= c1 || ky >= r1 {
             continue;
         }
-        let child = read_tile(meta, root, z + 1, kx, ky)?;
+        let child = sink.get(meta, z + 1, kx, ky)?;
         let half = TILE / 2;
         for py in 0..half {
             for px in 0..half {
@@ -540,6 +761,87 @@ fn parent_tile(meta: &StoreMeta, root: &Path, z: u32, x: u32, y: u32) -> Result<
         }
     }
     Ok(out)
+}
+
+/// A store open for reading: the folder form or one MBTiles file.
+pub struct Store {
+    /// Its description.
+    pub meta: StoreMeta,
+    /// The folder or file.
+    pub path: PathBuf,
+    mbtiles: Option<crate::mbtiles::MbTiles>,
+}
+
+impl Store {
+    /// Opens the store at `path`: a folder `hitex terrain build` made, or an
+    /// MBTiles file it wrote.
+    pub fn open(path: &Path) -> Result<Store, IoError> {
+        let named = path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("mbtiles"));
+        if named && path.is_file() {
+            let (db, meta) = crate::mbtiles::MbTiles::open(path)?;
+            return Ok(Store { meta, path: path.to_path_buf(), mbtiles: Some(db) });
+        }
+        if path.is_file() {
+            use std::io::Read;
+            let mut head = [0u8; 16];
+            let n = std::fs::File::open(path)
+                .and_then(|mut f| f.read(&mut head))
+                .map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
+            if crate::mbtiles::is_sqlite(&head[..n]) {
+                let (db, meta) = crate::mbtiles::MbTiles::open(path)?;
+                return Ok(Store { meta, path: path.to_path_buf(), mbtiles: Some(db) });
+            }
+        }
+        Ok(Store { meta: open_store(path)?, path: path.to_path_buf(), mbtiles: None })
+    }
+
+    /// Whether it is one MBTiles file.
+    pub fn is_mbtiles(&self) -> bool {
+        self.mbtiles.is_some()
+    }
+
+    /// Map (x, y-from-north) of level `z` as RGBA8, its size checked.
+    pub fn read_tile(&self, z: u32, x: u32, y: u32) -> Result<Vec<u8>, IoError> {
+        match &self.mbtiles {
+            Some(db) => db.read_map(&self.meta, z, x, y),
+            None => read_tile(&self.meta, &self.path, z, x, y),
+        }
+    }
+
+    /// The elevation model stored with the maps, if any: its name (a path
+    /// for errors, its extension the format) and bytes.
+    pub fn dem(&self) -> Result<Option<(PathBuf, Vec<u8>)>, IoError> {
+        match &self.mbtiles {
+            Some(db) => {
+                let Some(name) = db.file_names()?.into_iter().find(|n| n.starts_with("dem.")) else { return Ok(None) };
+                Ok(db.file(&name)?.map(|b| (self.path.join(name), b)))
+            }
+            None => {
+                let Some(p) = stored_dem(&self.path) else { return Ok(None) };
+                let len = std::fs::metadata(&p).map_err(|source| IoError::Read { path: p.clone(), source })?.len();
+                if len > crate::mbtiles::MAX_STORED_FILE_BYTES {
+                    return Err(IoError::Format {
+                        path: p,
+                        message: format!("file of {len} bytes is beyond the size limit"),
+                    });
+                }
+                let bytes = std::fs::read(&p).map_err(|source| IoError::Read { path: p.clone(), source })?;
+                Ok(Some((p, bytes)))
+            }
+        }
+    }
+}
+
+/// The elevation model a folder store holds beside its maps (`dem.*`).
+pub fn stored_dem(store: &Path) -> Option<PathBuf> {
+    let entries = std::fs::read_dir(store).ok()?;
+    let mut found: Vec<PathBuf> = entries
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.file_stem().is_some_and(|s| s == "dem") && p.is_file())
+        .collect();
+    found.sort();
+    found.into_iter().next()
 }
 
 /// Opens a store: reads and checks `metadata.json`.
@@ -571,9 +873,55 @@ pub fn parse_store_meta(text: &str, path: &Path) -> Result<StoreMeta, IoError> {
     if meta.width == 0 || meta.height == 0 || meta.width > MAX_SOURCE_SIDE || meta.height > MAX_SOURCE_SIDE {
         return bad(format!("source of {}x{} texels", meta.width, meta.height));
     }
-    let want = StoreMeta::for_source(meta.width, meta.height, meta.origin, meta.pixel, "", "").levels;
+    let want = levels_for(meta.offset[0] as u64 + meta.width as u64, meta.offset[1] as u64 + meta.height as u64);
     if meta.levels != want {
-        return bad(format!("{} levels; a {}x{} source has {want}", meta.levels, meta.width, meta.height));
+        return bad(format!(
+            "{} levels; a {}x{} source {}has {want}",
+            meta.levels,
+            meta.width,
+            meta.height,
+            if meta.offset == [0, 0] {
+                String::new()
+            } else {
+                format!("{:?} texels from the grid's corner ", meta.offset)
+            }
+        ));
+    }
+    match meta.profile {
+        Profile::Local if meta.tiles != [0, 0, 0] => {
+            return bad(format!("a local pyramid placed at global tile {:?}", meta.tiles));
+        }
+        Profile::Mercator => {
+            let [zoom, x, y] = meta.tiles;
+            let finest = zoom as u64 + meta.levels as u64 - 1;
+            if finest > MAX_MERCATOR_ZOOM as u64 || x as u64 >= 1u64 << zoom || y as u64 >= 1u64 << zoom {
+                return bad(format!("web-mercator tile {:?} with {} levels", meta.tiles, meta.levels));
+            }
+            let again = StoreMeta::mercator(
+                {
+                    let [x0, y1] = meta.data_origin();
+                    let (x1, y0) = (x0 + meta.width as f64 * meta.pixel[0], y1 - meta.height as f64 * meta.pixel[1]);
+                    let inset = meta.pixel[0] / 4.0;
+                    [x0 + inset, y0 + inset, x1 - inset, y1 - inset]
+                },
+                finest as u32,
+                &meta.source,
+            );
+            match again {
+                Ok(m)
+                    if (m.offset, m.tiles, m.width, m.height) == (meta.offset, meta.tiles, meta.width, meta.height)
+                        && (m.pixel[0] - meta.pixel[0]).abs() <= 1e-9 * m.pixel[0]
+                        && m.origin.iter().zip(&meta.origin).all(|(a, b)| (a - b).abs() <= 1e-3 * m.pixel[0])
+                        && meta.crs == "EPSG:3857" => {}
+                _ => {
+                    return bad(format!(
+                        "web-mercator tile {:?}, offset {:?}, pixel {:?}, CRS '{}' do not describe one zoom-{finest} extent",
+                        meta.tiles, meta.offset, meta.pixel, meta.crs
+                    ));
+                }
+            }
+        }
+        Profile::Local => {}
     }
     if !meta.origin.iter().chain(meta.pixel.iter()).all(|v| v.is_finite()) || meta.pixel.iter().any(|&p| p <= 0.0) {
         return bad("origin and pixel size must be finite, pixel sizes positive".into());
@@ -595,9 +943,9 @@ mod tests {
     fn geometry_of_a_pyramid() {
         let m = StoreMeta::for_source(1000, 600, [0.0, 0.0], [1.0, 1.0], "", "");
         assert_eq!(m.levels, 3); // 4×3 maps → 4 per side → levels 0..2
-        assert_eq!(m.data_tiles(2), (4, 3));
-        assert_eq!(m.data_tiles(1), (2, 2));
-        assert_eq!(m.data_tiles(0), (1, 1));
+        assert_eq!(m.data_range(2), [0, 0, 4, 3]);
+        assert_eq!(m.data_range(1), [0, 0, 2, 2]);
+        assert_eq!(m.data_range(0), [0, 0, 1, 1]);
         assert_eq!(m.total_tiles(), 12 + 4 + 1);
         // TMS rows count from the south of the padded 2^z grid
         assert!(m.tile_path(Path::new("s"), 2, 1, 0).ends_with("2/1/3.png"));
@@ -630,11 +978,8 @@ mod tests {
         assert_eq!(top, 1, "only the last shard finds the split level complete");
         assert_eq!(written, meta.total_tiles());
         for z in 0..meta.levels {
-            let (c, rows) = meta.data_tiles(z);
-            for y in 0..rows {
-                for x in 0..c {
-                    assert_eq!(read_tile(&meta, &one, z, x, y).unwrap(), read_tile(&meta, &three, z, x, y).unwrap());
-                }
+            for (x, y) in meta.data_maps(z) {
+                assert_eq!(read_tile(&meta, &one, z, x, y).unwrap(), read_tile(&meta, &three, z, x, y).unwrap());
             }
         }
         let _ = std::fs::remove_dir_all(&one);
@@ -685,6 +1030,119 @@ mod tests {
         std::fs::write(&p, b"not a png").unwrap();
         let e = read_tile(&meta, &d, 1, 0, 0).unwrap_err().to_string();
         assert!(e.contains(&p.display().to_string()), "{e}");
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    /// The web-mercator tile of (lon, lat) at `zoom`, by the slippy-map
+    /// formula (column, row from the north).
+    fn slippy(lon: f64, lat: f64, zoom: u32) -> (u32, u32) {
+        let n = (1u64 << zoom) as f64;
+        let phi = lat.to_radians();
+        let x = ((lon + 180.0) / 360.0 * n).floor();
+        let y = ((1.0 - (phi.tan() + 1.0 / phi.cos()).ln() / std::f64::consts::PI) / 2.0 * n).floor();
+        (x as u32, y as u32)
+    }
+
+    #[test]
+    fn mercator_pyramids_sit_on_the_global_tiles() {
+        use crate::crs::Crs;
+        let merc = Crs::from_epsg(3857).unwrap();
+        for (lon, lat, zoom) in
+            [(-34.8712, -7.9954, 13), (13.3777, 52.5163, 17), (-0.01, 51.48, 15), (151.2, -33.86, 12)]
+        {
+            // EPSG:3857 from PROJ's definition against the spherical formula
+            let p = Crs::wgs84().point(&merc, [lon, lat]);
+            assert!((p[0] - MERCATOR_RADIUS * lon.to_radians()).abs() < 1e-3, "{p:?}");
+            assert!((p[1] - MERCATOR_RADIUS * lat.to_radians().tan().asinh()).abs() < 1e-3, "{p:?}");
+            let meta =
+                StoreMeta::mercator([p[0] - 3000.0, p[1] - 2000.0, p[0] + 3000.0, p[1] + 2000.0], zoom, "t").unwrap();
+            let f = meta.levels - 1;
+            assert_eq!(meta.zoom(f), zoom);
+            assert_eq!(meta.data_range(0), [0, 0, 1, 1], "level 0 is one map");
+            // the finest map holding the point is the point's tile at that zoom
+            let tx = ((p[0] - meta.origin[0]) / meta.pixel[0]) as u32 / TILE;
+            let ty = ((meta.origin[1] - p[1]) / meta.pixel[1]) as u32 / TILE;
+            let (xt, yt) = slippy(lon, lat, zoom);
+            assert_eq!(meta.global_tile(f, tx, ty), (xt, yt), "({lon}, {lat}) at zoom {zoom}");
+            let tms = (1u32 << zoom) - 1 - yt;
+            assert!(meta.tile_path(Path::new("s"), f, tx, ty).ends_with(format!("{zoom}/{xt}/{tms}.png")));
+            // and a deeper zoom − levels + 1 would not hold the extent in one map
+            if meta.levels > 1 {
+                assert!(meta.data_count(1) > 1);
+            }
+            // lon/lat bounds hold the point
+            let [w, so, e, n] = meta.lon_lat_bounds().unwrap();
+            assert!(w < lon && lon < e && so < lat && lat < n);
+            // described and read back the same; a tampered placement is refused
+            let json = serde_json::to_string(&meta).unwrap();
+            assert_eq!(parse_store_meta(&json, Path::new("m.json")).unwrap(), meta);
+            for bad in [
+                StoreMeta { pixel: [meta.pixel[0] * 2.0; 2], ..meta.clone() },
+                StoreMeta { origin: [meta.origin[0] + meta.pixel[0] / 2.0, meta.origin[1]], ..meta.clone() },
+                StoreMeta { tiles: [meta.tiles[0], meta.tiles[1] + 1, meta.tiles[2]], ..meta.clone() },
+                StoreMeta { crs: "EPSG:31985".into(), ..meta.clone() },
+                StoreMeta { profile: Profile::Local, ..meta.clone() },
+            ]
+            .into_iter()
+            // (a local description of a pyramid at global tile 0/0/0 is a valid one)
+            .filter(|b| b.profile == Profile::Mercator || b.tiles != [0, 0, 0])
+            {
+                let j = serde_json::to_string(&bad).unwrap();
+                assert!(parse_store_meta(&j, Path::new("m.json")).is_err(), "{j}");
+            }
+        }
+        // an extent across the prime meridian and the equator needs zoom 0 as level 0
+        let m = StoreMeta::mercator([-1000.0, -1000.0, 1000.0, 1000.0], 10, "t").unwrap();
+        assert_eq!((m.tiles, m.levels), ([0, 0, 0], 11));
+        assert_eq!(m.data_range(10), [511, 511, 513, 513]);
+        // local stores keep their description as before
+        let local = StoreMeta::for_source(300, 300, [0.0, 0.0], [1.0, 1.0], "", "");
+        let j = serde_json::to_string(&local).unwrap();
+        assert!(!j.contains("offset") && !j.contains("profile") && !j.contains("tiles"), "{j}");
+        assert!(StoreMeta::mercator([0.0, 0.0, 1.0, 1.0], MAX_MERCATOR_ZOOM + 1, "t").is_err());
+        assert!(StoreMeta::mercator([0.0, 0.0, f64::NAN, 1.0], 5, "t").is_err());
+    }
+
+    #[test]
+    fn mercator_ground_texels_match_the_local_frame() {
+        use crate::crs::Crs;
+        let merc = Crs::from_epsg(3857).unwrap();
+        for (lon, lat) in [(-34.87, -8.0), (10.0, 45.0), (25.0, 65.0)] {
+            let p = Crs::wgs84().point(&merc, [lon, lat]);
+            let meta =
+                StoreMeta::mercator([p[0] - 2000.0, p[1] - 2000.0, p[0] + 2000.0, p[1] + 2000.0], 14, "t").unwrap();
+            // one texel east at the data's centre, measured in the local metric frame there
+            let [x0, y1] = meta.data_origin();
+            let c = [x0 + meta.width as f64 / 2.0 * meta.pixel[0], y1 - meta.height as f64 / 2.0 * meta.pixel[1]];
+            let ll = merc.point(&Crs::wgs84(), c);
+            let local = Crs::local(ll[0], ll[1]).unwrap();
+            let mut q = [[c[0] - 50.0 * meta.pixel[0], c[1]], [c[0] + 50.0 * meta.pixel[0], c[1]]];
+            merc.transform(&local, &mut q);
+            let metres = ((q[1][0] - q[0][0]).powi(2) + (q[1][1] - q[0][1]).powi(2)).sqrt() / 100.0;
+            // the sphere's cos φ against the ellipsoid: within 0.3 % (e²·sin²φ/2 at most)
+            let rel = (meta.ground_pixel() - metres).abs() / metres;
+            assert!(rel < 3e-3, "at {lat}°: {} vs {metres} m ({rel})", meta.ground_pixel());
+        }
+    }
+
+    #[test]
+    fn a_grid_with_an_offset_builds_only_its_data() {
+        let src = ProceduralSource { width: 300, height: 200, seed: 5 };
+        let mut meta = StoreMeta::for_source(300, 200, [0.0, 0.0], [1.0, 1.0], "", "t");
+        meta.offset = [400, 130];
+        meta.levels = levels_for(700, 330);
+        assert_eq!(meta.levels, 3);
+        assert_eq!(meta.data_range(2), [1, 0, 3, 2]);
+        assert_eq!(meta.data_range(1), [0, 0, 2, 1]);
+        let d = tmp("offset");
+        let r = build_store(&src, &meta, &d, BuildOptions::default(), &|_, _| {}).unwrap();
+        assert_eq!(r.written, meta.total_tiles());
+        assert_eq!(meta.total_tiles(), 4 + 2 + 1);
+        // source texel (0, 0) lies at grid texel (400, 130): map (1, 0) of the finest level, at (144, 130)
+        let t = read_tile(&meta, &d, 2, 1, 0).unwrap();
+        assert_eq!(&t[((130 * TILE + 144) * 4) as usize..][..4], &src.texel(0, 0));
+        assert_eq!(t[((129 * TILE + 144) * 4 + 3) as usize], 0, "above the data: transparent");
+        assert!(!meta.tile_path(&d, 2, 0, 0).exists(), "no map outside the data");
         let _ = std::fs::remove_dir_all(&d);
     }
 }

@@ -21,6 +21,7 @@ pub mod gst;
 pub mod iges;
 pub mod image_io;
 pub mod limits;
+pub mod mbtiles;
 pub mod models;
 pub mod mosaic;
 pub mod nurbs_json;

@@ -356,6 +356,160 @@ pub fn co_register(
     Ok(CoRegistered { dem, image, crs: target, unit_metres, notes })
 }
 
+/// Imagery read window by window in another CRS: each window of the target
+/// grid reads the source window that covers it (one read per window, so
+/// memory stays bounded whatever the source's size) and resamples it
+/// bilinearly in linear light, weighted by alpha; transparent outside the
+/// source.
+pub struct ReprojectedSource {
+    inner: Box<dyn crate::gst::TileSource>,
+    inner_grid: Grid,
+    from: Crs,
+    to: Crs,
+    grid: Grid,
+    name: String,
+}
+
+/// The largest source window one target window may read (texels).
+pub const MAX_REPROJECTED_WINDOW: u64 = 1 << 26;
+
+impl ReprojectedSource {
+    /// `inner` (on `inner_grid` in `from`) seen on `grid` (in `to`).
+    pub fn new(inner: Box<dyn crate::gst::TileSource>, inner_grid: Grid, from: Crs, to: Crs, grid: Grid) -> Self {
+        let name = format!("{}, reprojected from {} to {}", inner.describe(), from.name(), to.name());
+        Self { inner, inner_grid, from, to, grid, name }
+    }
+}
+
+impl crate::gst::TileSource for ReprojectedSource {
+    fn size(&self) -> (u32, u32) {
+        (self.grid.width, self.grid.height)
+    }
+
+    fn read(&self, x0: u32, y0: u32, w: u32, h: u32) -> Result<Vec<u8>, crate::IoError> {
+        let g = &self.grid;
+        let win = Grid {
+            width: w,
+            height: h,
+            origin: [g.origin[0] + x0 as f64 * g.pixel[0], g.origin[1] - y0 as f64 * g.pixel[1]],
+            pixel: g.pixel,
+        };
+        let mut out = vec![0u8; w as usize * h as usize * 4];
+        if w == 0 || h == 0 {
+            return Ok(out);
+        }
+        let to_src = |pts: &mut [[f64; 2]]| self.to.transform(&self.from, pts);
+        let pos: Vec<Vec<[f64; 2]>> =
+            (0..h as usize).map(|j| source_positions(&win, &self.inner_grid, &to_src, j)).collect();
+        let (sw, sh) = (self.inner_grid.width as f64, self.inner_grid.height as f64);
+        let inside = |p: &[f64; 2]| p[0] >= -0.5 && p[1] >= -0.5 && p[0] <= sw - 0.5 && p[1] <= sh - 0.5;
+        let mut b = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+        for p in pos.iter().flatten().filter(|p| inside(p)) {
+            b = [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])];
+        }
+        if b[0] > b[2] {
+            return Ok(out);
+        }
+        // the texels the bilinear taps reach
+        let sx0 = (b[0].floor().max(0.0)) as u32;
+        let sy0 = (b[1].floor().max(0.0)) as u32;
+        let sx1 = ((b[2].floor() + 1.0).min(sw - 1.0)) as u32;
+        let sy1 = ((b[3].floor() + 1.0).min(sh - 1.0)) as u32;
+        let (rw, rh) = (sx1 - sx0 + 1, sy1 - sy0 + 1);
+        if rw as u64 * rh as u64 > MAX_REPROJECTED_WINDOW {
+            return Err(crate::IoError::Core(hitex_core::CoreError::InvalidImage(format!(
+                "{}: a {w}x{h} window would read {rw}x{rh} source texels (beyond {MAX_REPROJECTED_WINDOW}); \
+                 the target grid is much coarser than the source",
+                self.name
+            ))));
+        }
+        let src = self.inner.read(sx0, sy0, rw, rh)?;
+        if src.len() != rw as usize * rh as usize * 4 {
+            return Err(crate::IoError::Core(hitex_core::CoreError::InvalidImage(format!(
+                "{}: window of {rw}x{rh} returned {} bytes",
+                self.inner.describe(),
+                src.len()
+            ))));
+        }
+        let lut = hitex_core::texture::image::decode_table(hitex_core::texture::ColorSpace::Srgb);
+        for (j, row) in pos.iter().enumerate() {
+            for (i, p) in row.iter().enumerate() {
+                if !inside(p) {
+                    continue;
+                }
+                let (fx, fy) = (p[0].floor(), p[1].floor());
+                let (tx, ty) = (p[0] - fx, p[1] - fy);
+                let (mut acc, mut alpha, mut wsum) = ([0.0f64; 3], 0.0f64, 0.0f64);
+                for (dx, dy, wt) in [
+                    (0.0, 0.0, (1.0 - tx) * (1.0 - ty)),
+                    (1.0, 0.0, tx * (1.0 - ty)),
+                    (0.0, 1.0, (1.0 - tx) * ty),
+                    (1.0, 1.0, tx * ty),
+                ] {
+                    let (x, y) = (fx + dx, fy + dy);
+                    if wt <= 0.0 || x < sx0 as f64 || y < sy0 as f64 || x > sx1 as f64 || y > sy1 as f64 {
+                        continue;
+                    }
+                    let k = ((y as u32 - sy0) as usize * rw as usize + (x as u32 - sx0) as usize) * 4;
+                    let a = src[k + 3] as f64 / 255.0;
+                    for c in 0..3 {
+                        acc[c] += wt * a * lut[src[k + c] as usize] as f64;
+                    }
+                    alpha += wt * a;
+                    wsum += wt;
+                }
+                if wsum <= 1e-12 || alpha <= 1e-12 {
+                    continue;
+                }
+                let o = (j * w as usize + i) * 4;
+                for c in 0..3 {
+                    out[o + c] = hitex_core::texture::linear_to_srgb_u8((acc[c] / alpha) as f32);
+                }
+                out[o + 3] = ((alpha / wsum) * 255.0).round().clamp(0.0, 255.0) as u8;
+            }
+        }
+        Ok(out)
+    }
+
+    fn describe(&self) -> String {
+        self.name.clone()
+    }
+}
+
+/// The web-mercator zoom whose texels are no larger than the ground size
+/// of `src`'s central pixel, and `src`'s extent in EPSG:3857 (x min, y min,
+/// x max, y max).
+pub fn mercator_zoom(src: &Grid, from: &Crs) -> Result<(u32, [f64; 4]), String> {
+    let merc = Crs::from_epsg(3857).map_err(|e| e.to_string())?;
+    let ([x0, x1, y0, y1], n) = extent_in(src, from, &merc);
+    if n < 8 {
+        return Err("the imagery's extent does not transform into web mercator (EPSG:3857)".into());
+    }
+    let c = src.centre(src.width as f64 / 2.0 - 0.5, src.height as f64 / 2.0 - 0.5);
+    let mut q = [
+        [c[0] - src.pixel[0] / 2.0, c[1]],
+        [c[0] + src.pixel[0] / 2.0, c[1]],
+        [c[0], c[1] - src.pixel[1] / 2.0],
+        [c[0], c[1] + src.pixel[1] / 2.0],
+    ];
+    from.transform(&merc, &mut q);
+    let px = ((q[1][0] - q[0][0]).powi(2) + (q[1][1] - q[0][1]).powi(2)).sqrt();
+    let py = ((q[3][0] - q[2][0]).powi(2) + (q[3][1] - q[2][1]).powi(2)).sqrt();
+    let p = px.min(py);
+    if !(p > 0.0 && p.is_finite()) {
+        return Err("the imagery's pixels have no size in web mercator (EPSG:3857)".into());
+    }
+    let world = 2.0 * crate::gst::MERCATOR_HALF / crate::gst::TILE as f64;
+    let zoom = (world / p).log2().ceil().max(0.0);
+    if zoom > crate::gst::MAX_MERCATOR_ZOOM as f64 {
+        return Err(format!(
+            "its texels of {p:.4} m in web mercator need zoom {zoom}, beyond {}",
+            crate::gst::MAX_MERCATOR_ZOOM
+        ));
+    }
+    Ok((zoom as u32, [x0, y0, x1, y1]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

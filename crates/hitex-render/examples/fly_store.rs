@@ -43,11 +43,11 @@ pub fn run(out: &Path, side: u32, frames: u32, (w, h): (u32, u32)) -> Result<Str
         let cam = FlyCamera::new(cx, cy, side as f64 / 8.0, 60.0, heading, fov);
         // 4. the maps this view needs: requested, waited for, then the page table
         let view = View { fov_deg: fov, pixels: w, per_side };
-        let needed = active_maps(meta.levels, TILE, |z| meta.data_tiles(z), [cam.eye[0], cam.eye[1]], cam.eye[2], view);
+        let needed = active_maps(meta.levels, TILE, |z| meta.data_range(z), [cam.eye[0], cam.eye[1]], cam.eye[2], view);
         cache.begin_frame(&needed);
         cache.wait_pending(Duration::from_secs(30));
         cache.begin_frame(&needed);
-        let pages = FlyPages::new(&cache, meta.levels, per_side, |z| meta.data_tiles(z), [cam.eye[0], cam.eye[1]]);
+        let pages = FlyPages::new(&cache, meta.levels, per_side, |z| meta.data_range(z), [cam.eye[0], cam.eye[1]]);
         // 5. render on any backend and save
         let uniform = FlyUniform::new(&cam, w, h, meta.levels, per_side);
         let job = Job::Flight { uniform, pages: Cow::Owned(pages), ground: FlyGround::Flat, stats: false };

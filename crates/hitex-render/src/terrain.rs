@@ -72,12 +72,13 @@ pub struct FlyPages {
 
 impl FlyPages {
     /// The page table for an eye above ground point `eye` (finest texels),
-    /// from what `cache` holds now; `data_tiles(z)` bounds the maps with data.
+    /// from what `cache` holds now; `data_range(z)` bounds the maps with data
+    /// (first column, first row, one past the last of each).
     pub fn new(
         cache: &ResidentMaps,
         levels: u32,
         per_side: u32,
-        data_tiles: impl Fn(u32) -> (u32, u32),
+        data_range: impl Fn(u32) -> [u32; 4],
         eye: [f64; 2],
     ) -> Self {
         let mut origins = Vec::with_capacity(levels as usize);
@@ -85,13 +86,13 @@ impl FlyPages {
         let mut maps = HashMap::new();
         for z in 0..levels {
             let span = MAP as f64 * (1u64 << (levels - 1 - z)) as f64;
-            let (cols, rows) = data_tiles(z);
+            let [c0, r0, c1, r1] = data_range(z);
             let half = per_side as f64 / 2.0;
             let o = [(eye[0] / span - half).floor() as i32, (eye[1] / span - half).floor() as i32];
             origins.push(o);
             for k in 0..(per_side * per_side) as i32 {
                 let (x, y) = (o[0] + k % per_side as i32, o[1] + k / per_side as i32);
-                if x < 0 || y < 0 || x as u32 >= cols || y as u32 >= rows {
+                if x < c0 as i32 || y < r0 as i32 || x >= c1 as i32 || y >= r1 as i32 {
                     slots.push(None);
                     continue;
                 }

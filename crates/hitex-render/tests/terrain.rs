@@ -33,8 +33,8 @@ fn loader() -> Arc<Loader> {
     })
 }
 
-fn tiles(z: u32) -> (u32, u32) {
-    (1 << z, 1 << z)
+fn tiles(z: u32) -> [u32; 4] {
+    [0, 0, 1 << z, 1 << z]
 }
 
 fn frame(wait: bool) -> (FlyUniform, FlyPages) {
