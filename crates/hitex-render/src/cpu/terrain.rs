@@ -237,7 +237,7 @@ impl Program<'_> {
             ix[i] = x0 as i32;
             iy[i] = y0 as i32;
         }
-        let mut c = [[[0.0f32; LANES]; 4]; 4];
+        let mut c = [[0.0f32; LANES]; 4];
         // neighbouring lanes almost always read one map: its page-table
         // walk (which depends on the level and the map's column and row
         // only) is kept for the next lane
@@ -259,21 +259,13 @@ impl Program<'_> {
             } else {
                 self.footprint(z[i], x, y)
             };
-            for (tap, q) in q.iter().enumerate() {
-                for ch in 0..4 {
-                    c[tap][ch][i] = q[ch];
-                }
+            // blended at once (see Program::spans_level_lanes)
+            let blended = lerp2(q, fx[i], fy[i]);
+            for ch in 0..4 {
+                c[ch][i] = blended[ch];
             }
         }
-        std::array::from_fn(|ch| {
-            let mut o = [0.0f32; LANES];
-            for i in 0..LANES {
-                let top = c[0][ch][i] + (c[1][ch][i] - c[0][ch][i]) * fx[i];
-                let bot = c[2][ch][i] + (c[3][ch][i] - c[2][ch][i]) * fx[i];
-                o[i] = top + (bot - top) * fy[i];
-            }
-            o
-        })
+        c
     }
 
     /// Four flat-ground spans on one block: the 8×2 pixels from column `x0`
@@ -426,7 +418,9 @@ impl Program<'_> {
         let mut out = [[0.0f32; LANES]; 4];
         let mut memo = ([-1; 3], None);
         if !bicubic {
-            let mut c = [[[0.0f32; LANES]; 4]; 4];
+            // each lane's blend right after its reads: the texels stay in
+            // registers (written to lane arrays and read back as vectors,
+            // the loads wait for the stores: no store forwarding)
             for i in 0..LANES {
                 if wanted >> i & 1 == 0 {
                     continue;
@@ -440,23 +434,15 @@ impl Program<'_> {
                     self.texel_memo(&mut memo, z, x, y + 1),
                     self.texel_memo(&mut memo, z, x + 1, y + 1),
                 ];
-                for tap in 0..4 {
-                    for ch in 0..4 {
-                        c[tap][ch][i] = q[tap][ch];
-                    }
-                }
-            }
-            for ch in 0..4 {
-                for i in 0..LANES {
-                    let top = c[0][ch][i] + (c[1][ch][i] - c[0][ch][i]) * tx[i];
-                    let bot = c[2][ch][i] + (c[3][ch][i] - c[2][ch][i]) * tx[i];
-                    out[ch][i] = top + (bot - top) * ty[i];
+                let blended = lerp2(q, tx[i], ty[i]);
+                for ch in 0..4 {
+                    out[ch][i] = blended[ch];
                 }
             }
             return out;
         }
-        // Catmull-Rom taps clamped into the span's B×B block
-        let mut c = [[[0.0f32; LANES]; 4]; 16];
+        // Catmull-Rom taps clamped into the span's B×B block, each lane's
+        // filter right after its reads (see the bilinear case above)
         for i in 0..LANES {
             if wanted >> i & 1 == 0 {
                 continue;
@@ -464,42 +450,22 @@ impl Program<'_> {
             let k = ks[i / 4];
             let z = if k > last { 0 } else { (last - k) as u32 };
             let o = origin[i / 4];
-            for j in 0..4 {
+            let (wx, wy) = (catmull_rom(tx[i]), catmull_rom(ty[i]));
+            let (mut acc, mut lo, mut hi) = ([0.0f32; 4], [f32::INFINITY; 4], [f32::NEG_INFINITY; 4]);
+            for (j, wyj) in wy.iter().enumerate() {
                 let y = (fy[i] + j as i32 - 1).clamp(o[1], o[1] + b - 1);
-                for t in 0..4 {
+                for (t, wxt) in wx.iter().enumerate() {
                     let x = (fx[i] + t as i32 - 1).clamp(o[0], o[0] + b - 1);
                     let q = self.texel_memo(&mut memo, z, x, y);
                     for ch in 0..4 {
-                        c[j * 4 + t][ch][i] = q[ch];
+                        acc[ch] += q[ch] * (wxt * wyj);
+                        lo[ch] = lo[ch].min(q[ch]);
+                        hi[ch] = hi[ch].max(q[ch]);
                     }
                 }
             }
-        }
-        let (wx, wy): ([[f32; LANES]; 4], [[f32; LANES]; 4]) = {
-            let (mut wx, mut wy) = ([[0.0f32; LANES]; 4], [[0.0f32; LANES]; 4]);
-            for i in 0..LANES {
-                let (a, c) = (catmull_rom(tx[i]), catmull_rom(ty[i]));
-                for d in 0..4 {
-                    wx[d][i] = a[d];
-                    wy[d][i] = c[d];
-                }
-            }
-            (wx, wy)
-        };
-        for ch in 0..4 {
-            let (mut acc, mut lo, mut hi) = ([0.0f32; LANES], [f32::INFINITY; LANES], [f32::NEG_INFINITY; LANES]);
-            for j in 0..4 {
-                for t in 0..4 {
-                    let v = &c[j * 4 + t][ch];
-                    for i in 0..LANES {
-                        acc[i] += v[i] * (wx[t][i] * wy[j][i]);
-                        lo[i] = lo[i].min(v[i]);
-                        hi[i] = hi[i].max(v[i]);
-                    }
-                }
-            }
-            for i in 0..LANES {
-                out[ch][i] = acc[i].clamp(lo[i], hi[i]);
+            for ch in 0..4 {
+                out[ch][i] = acc[ch].clamp(lo[ch], hi[ch]);
             }
         }
         out
