@@ -359,7 +359,12 @@ impl<'a> BtfProgram<'a> {
         let (last_entry, last_texel) = (entries.len() - 1, texels.len() - 1);
         let width = cb.width;
         let (tile_step, tile_w, cols) = (cb.tile_h * width, cb.tile_w, cb.tile_cols);
-        let inv_cols = 1.0 / cols as f64;
+        // k / cols as a multiply and a shift, exact for every k below the
+        // tile count (m = ⌈2^s / cols⌉ with 2^s ≥ tile count × cols: the
+        // excess k·(m − 2^s/cols)/2^s stays below 1/cols); lanes that read
+        // nothing may hold larger k, whose quotient only has to stay in u64
+        // (m < 2^32) and whose index is clamped below
+        let (magic, magic_shift) = div_magic(cols, cb.tile_count);
         let (su_on_x, sv_on_y) = (r.u_on_x as u32, r.v_on_y as u32);
         let mut acc = [[0.0f32; LANES]; 3];
         // every lane reads (clamped indices), so that the reads are gathers
@@ -378,11 +383,12 @@ impl<'a> BtfProgram<'a> {
             for c in 0..NC {
                 let mut base = [0u32; LANES];
                 for i in 0..LANES {
-                    let k = ck[c][i] + key[i];
-                    // k / cols, exact: the quotient is at least ½/cols from
-                    // an integer, far above the product's rounding
-                    let row = ((k as f64 + 0.5) * inv_cols) as u32;
-                    base[i] = row * tile_step + (k - row * cols) * tile_w + shift[i];
+                    let k = ck[c][i].wrapping_add(key[i]);
+                    let row = ((k as u64 * magic) >> magic_shift) as u32;
+                    base[i] = row
+                        .wrapping_mul(tile_step)
+                        .wrapping_add(k.wrapping_sub(row.wrapping_mul(cols)).wrapping_mul(tile_w))
+                        .wrapping_add(shift[i]);
                 }
                 for t in 0..NT {
                     let mut px = [0u64; LANES];
@@ -427,6 +433,16 @@ impl<'a> BtfProgram<'a> {
         self.shade_linear(v, &mut c);
         c
     }
+}
+
+/// The multiplier m and shift s with ⌊k·m / 2^s⌋ = ⌊k / d⌋ for every
+/// k < `bound` (m = ⌈2^s / d⌉, 2^s the least power of two ≥ bound · d); m
+/// stays below 2^32 while bound < 2^31, so k·m of any u32 k fits a u64.
+fn div_magic(d: u32, bound: u32) -> (u64, u32) {
+    let d = d.max(1) as u64;
+    let need = (bound.max(1) as u64) * d;
+    let s = (64 - (need - 1).leading_zeros()).min(63);
+    ((1u64 << s).div_ceil(d), s)
 }
 
 /// The two index texels around texture coordinate `t` (index-map repeats)
@@ -711,4 +727,50 @@ pub fn fragments_in_quad_order(scene: &PreparedBtf, frame: &BtfFrame, width: u32
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::div_magic;
+
+    #[test]
+    fn division_by_multiply_and_shift_is_exact_below_the_bound() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let mut cases: Vec<(u32, u32)> = vec![(1, 1), (1, 1 << 30), (3, 7), (7, 4096), (64, 1 << 20), (65535, 1 << 16)];
+        for _ in 0..300 {
+            let d = (next() % 70_000) as u32 + 1;
+            let bound = (next() % (1 << 26)) as u32 + 1;
+            cases.push((d, bound));
+        }
+        for (d, bound) in cases {
+            let (m, s) = div_magic(d, bound);
+            assert!(m <= 1 << 32, "{d} {bound}: m = {m}");
+            let check = |k: u32| assert_eq!(((k as u64 * m) >> s) as u32, k / d, "{k} / {d} (bound {bound})");
+            // both ends, every remainder's worst case near the bound, and random values
+            for k in [0, 1, d - 1, d, bound - 1, bound.saturating_sub(d)] {
+                if k < bound {
+                    check(k);
+                }
+            }
+            for q in [(bound - 1) / d, (bound - 1) / d / 2] {
+                for r in [0, d - 1] {
+                    let k = q as u64 * d as u64 + r as u64;
+                    if k < bound as u64 {
+                        check(k as u32);
+                    }
+                }
+            }
+            for _ in 0..64 {
+                check((next() % bound as u64) as u32);
+            }
+            // any u32 k keeps k·m inside u64 (lanes that read nothing)
+            let _ = (u32::MAX as u64).checked_mul(m).expect("k·m overflows");
+        }
+    }
 }
