@@ -67,15 +67,9 @@ pub fn extent_in(grid: &Grid, from: &Crs, to: &Crs) -> ([f64; 4], usize) {
     (e, pts.len())
 }
 
-/// The grid in `to` that covers `src` (in `from`) with square-ish pixels of
-/// the source's ground size at its centre, and at most `max_pixels` pixels.
-pub fn covering_grid(src: &GeoRaster, from: &Crs, to: &Crs, max_pixels: u64) -> Result<Grid, String> {
-    let g = Grid::of(src);
-    let ([x0, x1, y0, y1], n) = extent_in(&g, from, to);
-    if n < 8 {
-        return Err(format!("the raster's extent does not transform into {}", to.name()));
-    }
-    // the ground size of the source's central pixel, along each target axis
+/// The size in `to` of the central pixel of `g` (in `from`): the lengths of
+/// its horizontal and vertical midlines once transformed.
+fn central_pixel_in(g: &Grid, from: &Crs, to: &Crs) -> [f64; 2] {
     let c = g.centre(g.width as f64 / 2.0 - 0.5, g.height as f64 / 2.0 - 0.5);
     let mut q = [
         [c[0] - g.pixel[0] / 2.0, c[1]],
@@ -84,8 +78,19 @@ pub fn covering_grid(src: &GeoRaster, from: &Crs, to: &Crs, max_pixels: u64) -> 
         [c[0], c[1] + g.pixel[1] / 2.0],
     ];
     from.transform(to, &mut q);
-    let px = ((q[1][0] - q[0][0]).powi(2) + (q[1][1] - q[0][1]).powi(2)).sqrt();
-    let py = ((q[3][0] - q[2][0]).powi(2) + (q[3][1] - q[2][1]).powi(2)).sqrt();
+    let len = |a: [f64; 2], b: [f64; 2]| ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+    [len(q[0], q[1]), len(q[2], q[3])]
+}
+
+/// The grid in `to` that covers `src` (in `from`) with square-ish pixels of
+/// the source's ground size at its centre, and at most `max_pixels` pixels.
+pub fn covering_grid(src: &GeoRaster, from: &Crs, to: &Crs, max_pixels: u64) -> Result<Grid, String> {
+    let g = Grid::of(src);
+    let ([x0, x1, y0, y1], n) = extent_in(&g, from, to);
+    if n < 8 {
+        return Err(format!("the raster's extent does not transform into {}", to.name()));
+    }
+    let [px, py] = central_pixel_in(&g, from, to);
     if !(px > 0.0 && py > 0.0 && px.is_finite() && py.is_finite()) {
         return Err(format!("the raster's pixels have no size in {}", to.name()));
     }
@@ -485,16 +490,7 @@ pub fn mercator_zoom(src: &Grid, from: &Crs) -> Result<(u32, [f64; 4]), String> 
     if n < 8 {
         return Err("the imagery's extent does not transform into web mercator (EPSG:3857)".into());
     }
-    let c = src.centre(src.width as f64 / 2.0 - 0.5, src.height as f64 / 2.0 - 0.5);
-    let mut q = [
-        [c[0] - src.pixel[0] / 2.0, c[1]],
-        [c[0] + src.pixel[0] / 2.0, c[1]],
-        [c[0], c[1] - src.pixel[1] / 2.0],
-        [c[0], c[1] + src.pixel[1] / 2.0],
-    ];
-    from.transform(&merc, &mut q);
-    let px = ((q[1][0] - q[0][0]).powi(2) + (q[1][1] - q[0][1]).powi(2)).sqrt();
-    let py = ((q[3][0] - q[2][0]).powi(2) + (q[3][1] - q[2][1]).powi(2)).sqrt();
+    let [px, py] = central_pixel_in(src, from, &merc);
     let p = px.min(py);
     if !(p > 0.0 && p.is_finite()) {
         return Err("the imagery's pixels have no size in web mercator (EPSG:3857)".into());
