@@ -871,7 +871,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             }
             let ext = output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
             let text = match ext.as_deref() {
-                Some("json") => hitex_io::nurbs_json::to_nurbs_json(&m.surfaces),
+                Some("json") => hitex_io::nurbs_json::to_nurbs_json_with(&m.surfaces, &m.colors, m.units.as_deref()),
                 Some("obj") => hitex_io::obj_freeform::to_obj_freeform(&m.surfaces),
                 Some("igs") | Some("iges") => {
                     // IGES states a unit: the model's, else its default (millimetres)
@@ -901,10 +901,10 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             };
             // what the formats cannot carry is said, not dropped in silence
             let coloured = m.colors.iter().filter(|c| c.is_some()).count();
-            if coloured > 0 {
+            if coloured > 0 && ext.as_deref() != Some("json") {
                 eprintln!(
-                    "hitex: warning: {}: the colours of {} are not exported (the .igs, .obj and .json \
-                     exports carry surfaces and trims only)",
+                    "hitex: warning: {}: the colours of {} are not exported (the .igs and .obj exports \
+                     carry surfaces and trims only; .json keeps colours)",
                     m.name,
                     crate::count(coloured, "face", "faces")
                 );

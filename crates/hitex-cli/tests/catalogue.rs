@@ -223,6 +223,20 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
         ],
     ));
     let plate = include_str!("../../../fuzz/seeds/step/plate-with-hole.stp");
+    // a well-formed file whose reading would not fit the cap
+    let ok_stp = w("plate.stp", plate.as_bytes());
+    v.push(c("STEP", "valid, but beyond --max-memory 16K", &["--max-memory", "16K", "nurbs", "info", &ok_stp]));
+    v.push(c(
+        "IGES",
+        "valid, but beyond --max-memory 64K",
+        &["--max-memory", "64K", "nurbs", "info", &w("teapot.igs", include_bytes!("../../hitex-io/data/teapot.igs"))],
+    ));
+    let many = "0.25 0.5 1\n".repeat(1000);
+    v.push(c(
+        "points (XYZ)",
+        "valid, but beyond --max-memory 32K",
+        &["--max-memory", "32K", "nurbs", "deviation", "teapot", "--points", &w("many.xyz", many.as_bytes())],
+    ));
     v.push(c("STEP", "truncated inside a record", &["nurbs", "info", &w("cut.stp", &plate.as_bytes()[..400])]));
     v.push(c(
         "STEP",

@@ -159,6 +159,22 @@ fn exports_name_what_they_drop_and_keep_the_unit() {
     let o = hitex(&["nurbs", "info", out.to_str().unwrap(), "--json"]);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
     assert_eq!(v["units"], "mm", "{v}");
+    // JSON keeps the colours and the unit: no warning, and the export renders
+    // as the STEP file does, byte for byte
+    let json = d.join("asm.json");
+    let o = hitex(&["nurbs", "export", asm, "-o", json.to_str().unwrap()]);
+    assert!(o.status.success());
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("colours of"), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = hitex(&["nurbs", "info", json.to_str().unwrap(), "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    assert_eq!(v["units"], "mm", "{v}");
+    let render = |model: &str, name: &str| -> Vec<u8> {
+        let out = d.join(name);
+        let o = hitex(&["nurbs", "render", model, "--size", "96x72", "--backend", "cpu", "-o", out.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        image::open(&out).unwrap().to_rgba8().into_raw()
+    };
+    assert_eq!(render(asm, "step.png"), render(json.to_str().unwrap(), "json.png"));
     // a model without a unit: IGES's default, said as a note
     let out = d.join("teapot.igs");
     let o = hitex(&["nurbs", "export", &teapot(), "-o", out.to_str().unwrap()]);
@@ -417,18 +433,23 @@ fn nurbs_export_keeps_trims_in_every_format() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         String::from_utf8_lossy(&o.stdout).into_owned()
     };
-    let original = info(&holed());
-    assert!(original.contains("trim"), "{original}");
-    for ext in ["igs", "obj", "json"] {
-        let out = d.join(format!("back.{ext}"));
-        let o = hitex(&["nurbs", "export", &holed(), "-o", out.to_str().unwrap()]);
-        assert!(o.status.success(), "{ext}: {}", String::from_utf8_lossy(&o.stderr));
-        let back = info(out.to_str().unwrap());
-        // the per-patch lines (degrees, trims, loop sizes) are the same
-        let trims = |s: &str| -> Vec<String> {
-            s.lines().filter(|l| l.starts_with(' ') && l.contains("trim")).map(str::to_string).collect()
-        };
-        assert_eq!(trims(&original), trims(&back), "{ext}");
+    // an IGES sheet with a hole, and a machined part whose STEP loops met a
+    // seam twice in a row (IGES and OBJ came back a point short)
+    let part = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/cad/face_recognition_sample_part.stp");
+    for model in [holed(), part.to_string()] {
+        let original = info(&model);
+        assert!(original.contains("trim"), "{original}");
+        for ext in ["igs", "obj", "json"] {
+            let out = d.join(format!("back.{ext}"));
+            let o = hitex(&["nurbs", "export", &model, "-o", out.to_str().unwrap()]);
+            assert!(o.status.success(), "{ext}: {}", String::from_utf8_lossy(&o.stderr));
+            let back = info(out.to_str().unwrap());
+            // the per-patch lines (degrees, trims, loop sizes) are the same
+            let trims = |s: &str| -> Vec<String> {
+                s.lines().filter(|l| l.starts_with(' ') && l.contains("trim")).map(str::to_string).collect()
+            };
+            assert_eq!(trims(&original), trims(&back), "{model} as {ext}");
+        }
     }
 }
 

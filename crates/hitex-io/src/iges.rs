@@ -117,6 +117,7 @@ pub fn load_iges(path: &Path) -> Result<IgesModel, IgesError> {
     if meta.len() > MAX_IGES_FILE_BYTES {
         return Err(err("", format!("{} bytes exceeds the {MAX_IGES_FILE_BYTES}-byte limit", meta.len())));
     }
+    crate::limits::check_text_file(crate::limits::TextKind::Iges, meta.len()).map_err(|e| err("", e.to_string()))?;
     let bytes = std::fs::read(path).map_err(|e| err("", e.to_string()))?;
     // IGES is ASCII in fixed columns: a stray byte beyond ASCII stands as
     // one '?' so that every later column stays where the file put it

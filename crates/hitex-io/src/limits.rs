@@ -128,7 +128,10 @@ fn human(b: u64) -> String {
 /// Checks that `claimed` bytes for `what` fit the cap. `None` means the claim
 /// overflowed 64 bits.
 pub fn check_cap(what: &str, claimed: Option<u64>) -> Result<u64, LimitError> {
-    let cap = max_bytes();
+    check_against(what, claimed, max_bytes())
+}
+
+fn check_against(what: &str, claimed: Option<u64>, cap: u64) -> Result<u64, LimitError> {
     match claimed {
         Some(c) if c <= cap => Ok(c),
         Some(c) => Err(LimitError::BeyondCap { what: what.to_string(), claimed: c, cap }),
@@ -154,6 +157,62 @@ pub fn check_backing(what: &str, claimed: Option<u64>, available: u64, ratio: u6
         return Err(LimitError::Unbacked { what: what.to_string(), claimed: c, available, bound });
     }
     Ok(c)
+}
+
+/// Memory a text reader holds at its peak per byte of its file (the text,
+/// the records parsed from it and the model built from them), measured on
+/// exports of the real CAD files (a 9 MB STEP assembly, its 15 MB IGES, 9 MB
+/// OBJ and 7 MB JSON exports) and a mesh, rounded up; points: the worst case
+/// of `0 0 0` lines (6 bytes of text, 24 bytes of coordinates).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TextKind {
+    /// STEP (ISO 10303-21): measured 9.6 bytes a byte.
+    Step,
+    /// IGES: measured 8.3.
+    Iges,
+    /// OBJ free-form: measured 2.9.
+    ObjFreeform,
+    /// The native JSON model: measured 1.8.
+    Json,
+    /// XYZ or JSON points: at most 5.
+    Points,
+    /// A polygon mesh in OBJ: measured 2.3 (a 46 MB grid with texture coordinates).
+    ObjMesh,
+}
+
+impl TextKind {
+    /// Bytes of memory per byte of text.
+    pub fn ratio(self) -> u64 {
+        match self {
+            TextKind::Step => 12,
+            TextKind::Iges => 10,
+            TextKind::ObjFreeform => 4,
+            TextKind::Json => 3,
+            TextKind::Points => 5,
+            TextKind::ObjMesh => 4,
+        }
+    }
+    fn name(self) -> &'static str {
+        match self {
+            TextKind::Step => "STEP",
+            TextKind::Iges => "IGES",
+            TextKind::ObjFreeform => "OBJ",
+            TextKind::Json => "JSON",
+            TextKind::Points => "point",
+            TextKind::ObjMesh => "OBJ mesh",
+        }
+    }
+}
+
+/// Checks, before a text file is read whole, that reading it fits the cap:
+/// its `len` bytes times what its reader holds per byte ([`TextKind::ratio`]).
+pub fn check_text_file(kind: TextKind, len: u64) -> Result<u64, LimitError> {
+    check_text_against(kind, len, max_bytes())
+}
+
+fn check_text_against(kind: TextKind, len: u64, cap: u64) -> Result<u64, LimitError> {
+    let what = format!("reading this {} file of {} ({}x in memory)", kind.name(), human(len), kind.ratio());
+    check_against(&what, len.checked_mul(kind.ratio()), cap)
 }
 
 /// `a * b * c` in u64, `None` on overflow.
@@ -194,5 +253,19 @@ mod tests {
         assert_eq!(parse_bytes("1.2.3").unwrap_err().to_string(), "'1.2.3' is not a size such as 512M or 2G");
         assert_eq!(product(&[1 << 32, 1 << 31, 4]), None);
         assert_eq!(product(&[3, 5, 7]), Some(105));
+    }
+
+    #[test]
+    fn text_files_are_weighed_by_what_their_reader_holds() {
+        let cap = 100 << 20;
+        // 9 MB of STEP takes about 110 MB: beyond a 100 MB cap; as JSON it fits
+        let e = check_text_against(TextKind::Step, 9 << 20, cap).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "reading this STEP file of 9.0 MiB (12x in memory) needs 108.0 MiB (113246208 bytes), beyond the \
+             memory cap of 100.0 MiB (raise it with --max-memory or HITEX_MAX_MEMORY)"
+        );
+        assert_eq!(check_text_against(TextKind::Json, 9 << 20, cap), Ok(27 << 20));
+        assert!(matches!(check_text_against(TextKind::Iges, u64::MAX / 4, cap), Err(LimitError::Overflow(_))));
     }
 }

@@ -254,16 +254,16 @@ pub fn load_model_with(spec: &str, opts: &LoadOptions) -> Result<NurbsModel, IoE
                     })
                 }
                 Some("json") => {
-                    let surfaces = crate::nurbs_json::load_nurbs_json(p)?;
+                    let m = crate::nurbs_json::load_nurbs_json(p)?;
                     Ok(NurbsModel {
                         name: path.to_string(),
-                        surfaces,
+                        surfaces: m.surfaces,
                         warnings: vec![],
                         repairs: vec![],
                         notes: vec![],
                         census: Default::default(),
-                        units: None,
-                        colors: vec![],
+                        units: m.units,
+                        colors: m.colors,
                     })
                 }
                 Some("stp") | Some("step") | Some("p21") => {

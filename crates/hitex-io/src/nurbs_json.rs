@@ -2,12 +2,15 @@
 //! be saved, exchanged and read back exactly.
 //!
 //! ```json
-//! {"format": "hitex-nurbs", "version": 1, "patches": [
+//! {"format": "hitex-nurbs", "version": 2, "units": "mm", "patches": [
 //!   {"degree": [3, 3], "count": [4, 4], "knots_u": [...], "knots_v": [...],
 //!    "points": [[x, y, z, w], ...], "range": [[u0, u1], [v0, v1]],
-//!    "trim": [[[u, v], ...], ...]}]}
+//!    "trim": [[[u, v], ...], ...], "color": [r, g, b]}]}
 //! ```
 //! Points are Cartesian with their weight, `j * count_u + i` (i along u).
+//! Version 2 adds the optional length unit and each patch's optional colour
+//! (linear RGB, 0 to 1, as a STEP style gives it); a model with neither is
+//! written as version 1, which both versions' readers read.
 
 use crate::IoError;
 use crate::iges::IgesSurface;
@@ -23,6 +26,8 @@ pub const MAX_JSON_FILE_BYTES: u64 = 1 << 30;
 struct FileJson {
     format: String,
     version: u32,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    units: Option<String>,
     patches: Vec<PatchJson>,
 }
 
@@ -39,21 +44,36 @@ struct PatchJson {
     /// Trimming loops in parameter space (even–odd rule).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     trim: Vec<Vec<[f64; 2]>>,
+    /// Linear RGB (version 2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    color: Option<[f32; 3]>,
+}
+
+/// A native model: its patches, and what version 2 adds.
+#[derive(Debug, Clone)]
+pub struct JsonModel {
+    /// The patches (`directory_entry`: the patch's place, from 1).
+    pub surfaces: Vec<IgesSurface>,
+    /// Each patch's colour (linear RGB) where the file gives one; empty: none.
+    pub colors: Vec<Option<[f32; 3]>>,
+    /// The length unit where the file states one ("mm", "inch", …).
+    pub units: Option<String>,
 }
 
 /// Reads a native JSON model.
-pub fn load_nurbs_json(path: &Path) -> Result<Vec<IgesSurface>, IoError> {
+pub fn load_nurbs_json(path: &Path) -> Result<JsonModel, IoError> {
     let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
     let meta = std::fs::metadata(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
     if meta.len() > MAX_JSON_FILE_BYTES {
         return Err(fmt(format!("file of {} bytes exceeds the {MAX_JSON_FILE_BYTES}-byte limit", meta.len())));
     }
+    crate::limits::check_text_file(crate::limits::TextKind::Json, meta.len()).map_err(|e| fmt(e.to_string()))?;
     let text = std::fs::read_to_string(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
     parse_nurbs_json(&text).map_err(fmt)
 }
 
 /// Parses native JSON text; errors name the patch and field.
-pub fn parse_nurbs_json(text: &str) -> Result<Vec<IgesSurface>, String> {
+pub fn parse_nurbs_json(text: &str) -> Result<JsonModel, String> {
     let f: FileJson = serde_json::from_str(text).map_err(|e| {
         // serde_json's message ends with the position; state it once, first
         let full = e.to_string();
@@ -63,14 +83,29 @@ pub fn parse_nurbs_json(text: &str) -> Result<Vec<IgesSurface>, String> {
     if f.format != "hitex-nurbs" {
         return Err(format!("format is '{}', expected 'hitex-nurbs'", f.format));
     }
-    if f.version != 1 {
-        return Err(format!("version {} is not supported (this reader knows version 1)", f.version));
+    if f.version != 1 && f.version != 2 {
+        return Err(format!("version {} is not supported (this reader knows versions 1 and 2)", f.version));
+    }
+    if f.version == 1 && (f.units.is_some() || f.patches.iter().any(|p| p.color.is_some())) {
+        return Err("units and colours need version 2 (the file says version 1)".into());
+    }
+    if let Some(u) = &f.units
+        && (u.trim().is_empty() || u.len() > 64 || u.chars().any(char::is_control))
+    {
+        return Err(format!("units {u:?} is not a unit name such as \"mm\" or \"inch\""));
     }
     if f.patches.is_empty() {
         return Err("the file has no patches".into());
     }
     let mut out = Vec::with_capacity(f.patches.len());
+    let mut colors = Vec::with_capacity(f.patches.len());
     for (k, p) in f.patches.into_iter().enumerate() {
+        if let Some(c) = p.color
+            && !c.iter().all(|x| (0.0..=1.0).contains(x))
+        {
+            return Err(format!("patch {k}: color {c:?} must be three numbers from 0 to 1 (linear RGB)"));
+        }
+        colors.push(p.color);
         let s = NurbsSurface::new(p.degree[0], p.degree[1], p.count[0], p.count[1], p.knots_u, p.knots_v, p.points)
             .map_err(|e| format!("patch {k}: {e}"))?;
         let dom = s.domain();
@@ -99,17 +134,31 @@ pub fn parse_nurbs_json(text: &str) -> Result<Vec<IgesSurface>, String> {
         }
         out.push(IgesSurface { surface: s, range, directory_entry: k + 1, trim: p.trim });
     }
-    Ok(out)
+    if colors.iter().all(Option::is_none) {
+        colors.clear();
+    }
+    Ok(JsonModel { surfaces: out, colors, units: f.units })
 }
 
-/// Native JSON text of a model.
+/// Native JSON text of a model's patches (version 1).
 pub fn to_nurbs_json(surfaces: &[IgesSurface]) -> String {
+    to_nurbs_json_with(surfaces, &[], None)
+}
+
+/// Native JSON text of a model with its patches' colours (linear RGB; empty
+/// or shorter than the patches: the rest have none) and length unit, which
+/// read back as given (version 2; version 1 when there is neither).
+pub fn to_nurbs_json_with(surfaces: &[IgesSurface], colors: &[Option<[f32; 3]>], units: Option<&str>) -> String {
+    let color = |k: usize| colors.get(k).copied().flatten();
+    let v2 = units.is_some() || (0..surfaces.len()).any(|k| color(k).is_some());
     let f = FileJson {
         format: "hitex-nurbs".into(),
-        version: 1,
+        version: if v2 { 2 } else { 1 },
+        units: units.map(str::to_string),
         patches: surfaces
             .iter()
-            .map(|p| PatchJson {
+            .enumerate()
+            .map(|(k, p)| PatchJson {
                 degree: [p.surface.degree_u, p.surface.degree_v],
                 count: [p.surface.count_u, p.surface.count_v],
                 knots_u: p.surface.knots_u.clone(),
@@ -117,6 +166,7 @@ pub fn to_nurbs_json(surfaces: &[IgesSurface]) -> String {
                 points: p.surface.points.clone(),
                 range: Some([[p.range.0.0, p.range.0.1], [p.range.1.0, p.range.1.1]]),
                 trim: p.trim.clone(),
+                color: color(k),
             })
             .collect(),
     };
@@ -275,12 +325,31 @@ mod tests {
             crate::iges::load_iges(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/holed-square.igs")).unwrap();
         a.extend(holed.surfaces);
         let b = parse_nurbs_json(&to_nurbs_json(&a)).unwrap();
-        assert_eq!(a.len(), b.len());
-        for (x, y) in a.iter().zip(&b) {
+        assert_eq!(a.len(), b.surfaces.len());
+        for (x, y) in a.iter().zip(&b.surfaces) {
             assert_eq!(x.surface, y.surface);
             assert_eq!(x.range, y.range);
             assert_eq!(x.trim, y.trim);
         }
+        assert!(b.colors.is_empty() && b.units.is_none());
+        assert!(to_nurbs_json(&a).contains(r#""version":1"#));
+    }
+
+    #[test]
+    fn colours_and_units_read_back_as_written() {
+        let a = teapot();
+        // every other patch coloured, with values that need all of f32's digits
+        let colors: Vec<Option<[f32; 3]>> =
+            (0..a.len()).map(|k| (k % 2 == 0).then(|| [0.1 + k as f32 / 97.0, 1.0 / 3.0, 0.0])).collect();
+        let text = to_nurbs_json_with(&a, &colors, Some("inch"));
+        assert!(text.contains(r#""version":2"#) && text.contains(r#""units":"inch""#));
+        let b = parse_nurbs_json(&text).unwrap();
+        assert_eq!(b.colors, colors);
+        assert_eq!(b.units.as_deref(), Some("inch"));
+        // a unit alone is version 2 too; no colour at all reads back as none
+        let b = parse_nurbs_json(&to_nurbs_json_with(&a, &[], Some("mm"))).unwrap();
+        assert!(b.colors.is_empty());
+        assert_eq!(b.units.as_deref(), Some("mm"));
     }
 
     #[test]
@@ -368,6 +437,12 @@ mod tests {
                 "range",
             ),
             (r#"{"format":"hitex-nurbs","version":1,"patches":[],"extra":1}"#, "extra"),
+            (r#"{"format":"hitex-nurbs","version":1,"units":"mm","patches":[]}"#, "need version 2"),
+            (r#"{"format":"hitex-nurbs","version":2,"units":" ","patches":[]}"#, "not a unit name"),
+            (
+                r#"{"format":"hitex-nurbs","version":2,"patches":[{"degree":[1,1],"count":[2,2],"knots_u":[0,0,1,1],"knots_v":[0,0,1,1],"points":[[0,0,0,1],[1,0,0,1],[0,1,0,1],[1,1,0,1]],"color":[0.5,2,0]}]}"#,
+                "patch 0: color [0.5, 2.0, 0.0] must be three numbers from 0 to 1",
+            ),
         ];
         for (text, needle) in cases {
             let e = parse_nurbs_json(text).unwrap_err();

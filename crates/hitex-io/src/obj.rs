@@ -19,6 +19,7 @@ pub fn load_obj(path: &Path) -> Result<Vec<Mesh>, IoError> {
     if meta.len() > MAX_OBJ_FILE_BYTES {
         return Err(fmt(format!("file of {} bytes exceeds the {MAX_OBJ_FILE_BYTES}-byte limit", meta.len())));
     }
+    crate::limits::check_text_file(crate::limits::TextKind::ObjMesh, meta.len()).map_err(|e| fmt(e.to_string()))?;
     let bytes = std::fs::read(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
     let text = String::from_utf8_lossy(&bytes);
     let opts = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };

@@ -52,6 +52,7 @@ pub fn load_obj_freeform_warned(path: &Path) -> Result<(Vec<IgesSurface>, Vec<St
     if meta.len() > MAX_FREEFORM_FILE_BYTES {
         return Err(fmt(format!("file of {} bytes exceeds the {MAX_FREEFORM_FILE_BYTES}-byte limit", meta.len())));
     }
+    crate::limits::check_text_file(crate::limits::TextKind::ObjFreeform, meta.len()).map_err(|e| fmt(e.to_string()))?;
     let bytes = std::fs::read(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
     let text = String::from_utf8_lossy(&bytes);
     let surfaces = parse_obj_freeform(&text).map_err(fmt)?;

@@ -19,6 +19,8 @@ pub fn load_points(path: &Path) -> Result<Vec<[f64; 3]>, IoError> {
             message: format!("{} bytes exceeds the {MAX_POINTS_FILE_BYTES}-byte limit", meta.len()),
         });
     }
+    crate::limits::check_text_file(crate::limits::TextKind::Points, meta.len())
+        .map_err(|e| IoError::Format { path: path.to_path_buf(), message: e.to_string() })?;
     let bytes = std::fs::read(path).map_err(read)?;
     if let Some(kind) = crate::binary_kind(&bytes) {
         return Err(IoError::Format {

@@ -126,7 +126,17 @@ pub(crate) fn build_face(m: &Model, face_id: u64, tol: f64) -> Result<IgesSurfac
         }
         range = ((c - range.0.1, c - range.0.0), range.1);
     }
-    let trim = trims.into_iter().map(|l| l.into_iter().map(|p| [p.x, p.y]).collect()).collect();
+    // a vertex found twice in a row (an edge of no length where a loop meets
+    // a seam, or two points that the parameter map rounds alike) carries
+    // nothing: dropped, so that every export reads back point for point
+    let trim = trims
+        .into_iter()
+        .map(|l| {
+            let mut l: Vec<[f64; 2]> = l.into_iter().map(|p| [p.x, p.y]).collect();
+            l.dedup();
+            l
+        })
+        .collect();
     Ok(IgesSurface { surface: nurbs, range, directory_entry: face_id as usize, trim })
 }
 

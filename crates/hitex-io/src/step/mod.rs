@@ -98,6 +98,7 @@ pub fn load_step(path: &Path, opts: &StepOptions) -> Result<StepModel, StepError
     if meta.len() > MAX_STEP_FILE_BYTES {
         return Err(err(format!("{} bytes exceeds the {MAX_STEP_FILE_BYTES}-byte limit", meta.len())));
     }
+    crate::limits::check_text_file(crate::limits::TextKind::Step, meta.len()).map_err(|e| err(e.to_string()))?;
     let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
     parse_step(&bytes, &file, opts)
 }
