@@ -90,7 +90,13 @@ impl CpuRenderer {
                     (bits as u64) << 32 | k as u64
                 })
                 .collect();
-            keys.par_sort_unstable();
+            // a frame's few thousand keys sort faster on one thread than
+            // split between threads
+            if keys.len() < 1 << 16 {
+                keys.sort_unstable();
+            } else {
+                keys.par_sort_unstable();
+            }
             sorted = keys
                 .par_iter()
                 .flat_map_iter(|&key| {
