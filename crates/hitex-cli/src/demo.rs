@@ -283,6 +283,43 @@ fn terrain_showcase(
 }
 
 /// Renders the showcase images into `out`.
+/// A synthetic scan of `model`: its tessellation (24×24 per patch) with a
+/// bump of +0.03 on the side facing the default view and a dent of −0.02 at
+/// the top of the lid, both Gaussian along the exact normal; written to
+/// `teapot-scan.stl` and `teapot-scan.xyz` in `out` so that the picture can
+/// be made again from the command line.
+#[allow(clippy::type_complexity)]
+fn teapot_scan(
+    model: &hitex_io::models::NurbsModel,
+    out: &Path,
+) -> Result<(Vec<hitex_io::stl::Triangle>, Vec<[f64; 3]>), CliError> {
+    let p = crate::nurbs_cmd::prepare(model, 24);
+    let view = hitex_render::nurbs::ModelView::default();
+    let eye = p.view_camera(&view, 1.0, [-1.0, 1.0, -1.0, 1.0]).position;
+    let pos = |v: &hitex_render::nurbs::NurbsVertex| glam::Vec3::from_array(v.position);
+    let near = |key: &dyn Fn(glam::Vec3) -> f32| {
+        p.vertices.iter().map(pos).min_by(|a, b| key(*a).total_cmp(&key(*b))).unwrap_or(glam::Vec3::ZERO)
+    };
+    let bump = near(&|v| (v - eye).length());
+    let dent = near(&|v| -v.z);
+    let moved: Vec<[f64; 3]> = p
+        .vertices
+        .iter()
+        .map(|v| {
+            let x = pos(v);
+            let n = glam::Vec3::from_array(v.normal);
+            let g = |c: glam::Vec3, a: f32, s: f32| a * (-(x - c).length_squared() / (s * s)).exp();
+            (x + n * (g(bump, 0.03, 0.35) + g(dent, -0.02, 0.25))).as_dvec3().to_array()
+        })
+        .collect();
+    let tris: Vec<hitex_io::stl::Triangle> =
+        p.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| moved[t[k] as usize])).collect();
+    hitex_io::write_atomic(&out.join("teapot-scan.stl"), &hitex_io::stl::to_binary_stl(&tris))?;
+    let xyz: String = moved.iter().map(|q| format!("{} {} {}\n", q[0], q[1], q[2])).collect();
+    hitex_io::write_atomic(&out.join("teapot-scan.xyz"), xyz.as_bytes())?;
+    Ok((tris, moved))
+}
+
 pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(), CliError> {
     hitex_io::create_output_dir(out)?;
     let mut r = open_renderer(backend)?;
@@ -449,6 +486,39 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
     report(
         "lines.png",
         "teapot: 4 isoparametric lines per patch | sections z = const, exact per pixel",
+        &side_by_side(&[a, b]),
+        ma + mb,
+    )?;
+
+    // a synthetic scan of the teapot (its tessellation with a bump on the
+    // body and a dent in the lid), as a mesh and as points, and the exact
+    // surface coloured by its deviation from each
+    let (scan, points) = teapot_scan(&teapot, out)?;
+    let mut deviation = |data: hitex_io::stl::ReferenceData, name: &str| -> Result<(Frame, f64), CliError> {
+        let mut p = crate::nurbs_cmd::prepare(&teapot, 8);
+        p.mode = NurbsMode::Deviation;
+        let opts = crate::nurbs_cmd::DeviationOptions {
+            grid: 48,
+            tolerance: Some(0.004),
+            range: Some(0.04),
+            max_distance: None,
+        };
+        for line in crate::nurbs_cmd::set_up_deviation(&mut p, &teapot, data, name, &opts)? {
+            say!("  {line}");
+        }
+        let view = hitex_render::nurbs::ModelView::default();
+        let cam = p.view_camera(&view, 1.0, crate::nurbs_cmd::view_window(side, side, true));
+        let t = Instant::now();
+        let mut f = render_frame(&mut r, &Job::Nurbs { model: &p, camera: cam }, (side, side))?;
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        crate::nurbs_cmd::mode_legend(&mut f, &p, true);
+        Ok((f, ms))
+    };
+    let (a, ma) = deviation(hitex_io::stl::ReferenceData::Mesh(scan), "teapot-scan.stl")?;
+    let (b, mb) = deviation(hitex_io::stl::ReferenceData::Points(points), "teapot-scan.xyz")?;
+    report(
+        "deviation.png",
+        "deviation from a scan, exact surface points: mesh (teapot-scan.stl) | its vertices (teapot-scan.xyz)",
         &side_by_side(&[a, b]),
         ma + mb,
     )?;

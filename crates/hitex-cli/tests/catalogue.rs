@@ -273,6 +273,38 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
             }),
         ],
     ));
+    // STL references of the deviation mode
+    let stl = |name: &str, bytes: &[u8]| -> Vec<String> {
+        ["nurbs", "render", "teapot", "--mode", "deviation", "--reference", &w(name, bytes), "-o", &out]
+            .map(String::from)
+            .to_vec()
+    };
+    let facet = "solid s\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 1 0 0\n   vertex 0 1 0\n  endloop\n endfacet\nendsolid s\n";
+    let bin = hitex_io::stl::to_binary_stl(&[[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]; 2]);
+    for (what, args) in [
+        ("binary, truncated inside a triangle", stl("cut.stl", &bin[..bin.len() - 20])),
+        (
+            "binary, claiming 4 billion triangles",
+            stl("claims.stl", &{
+                let mut b = bin.clone();
+                b[80..84].copy_from_slice(&u32::MAX.to_le_bytes());
+                b
+            }),
+        ),
+        (
+            "ASCII, a vertex that is not a number",
+            stl("word.stl", facet.replace("vertex 1 0 0", "vertex 1 oops 0").as_bytes()),
+        ),
+        ("ASCII, a facet of two vertices", stl("two.stl", facet.replace("   vertex 0 1 0\n", "").as_bytes())),
+        ("ASCII, no facets", stl("empty.stl", b"solid s\nendsolid s\n")),
+        (
+            "a mesh far from the model (other units or place)",
+            stl("far.stl", &hitex_io::stl::to_binary_stl(&[[[1e4, 0.0, 0.0], [1e4 + 1.0, 0.0, 0.0], [1e4, 1.0, 0.0]]])),
+        ),
+    ] {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        v.push(c("STL (deviation reference)", what, &args));
+    }
     v.push(c(
         "points (JSON)",
         "a point of two coordinates",

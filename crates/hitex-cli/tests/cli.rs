@@ -837,3 +837,89 @@ fn nurbs_info_json_and_deviation_measure_trimmed_faces() {
     assert!(out.contains("3 points to 1 faces") || out.contains("3 points to 1 face"), "{out}");
     assert!(out.contains("max 10") && out.contains("point 2"), "{out}");
 }
+
+/// The teapot's own tessellation (24×24 per patch) as a binary STL, each
+/// vertex moved by `lift` along its exact normal.
+fn teapot_mesh(path: &std::path::Path, lift: f32) -> usize {
+    let m = hitex_io::models::load_model("teapot").unwrap();
+    let p = hitex_render::nurbs::PreparedNurbs::new(m.nurbs(), &m.ranges(), 24);
+    let at = |i: u32| {
+        let v = &p.vertices[i as usize];
+        [0, 1, 2].map(|k| (v.position[k] + lift * v.normal[k]) as f64)
+    };
+    let tris: Vec<[[f64; 3]; 3]> = p.indices.chunks_exact(3).map(|t| [at(t[0]), at(t[1]), at(t[2])]).collect();
+    std::fs::write(path, hitex_io::stl::to_binary_stl(&tris)).unwrap();
+    tris.len()
+}
+
+#[test]
+fn deviation_mode_measures_a_mesh_and_a_cloud_and_refuses_bad_flags() {
+    let d = tmp("deviation-mode");
+    let out = d.join("dev.png");
+    let render = |reference: &std::path::Path, extra: &[&str]| {
+        let mut args = vec![
+            "nurbs",
+            "render",
+            "teapot",
+            "--mode",
+            "deviation",
+            "--reference",
+            reference.to_str().unwrap(),
+            "--size",
+            "96x64",
+            "--backend",
+            "cpu",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        hitex(&args)
+    };
+    // the surface against its own tessellation: within the tessellation's
+    // chord error everywhere (the teapot's 24×24 cells deviate < 0.003)
+    let mesh = d.join("scan.stl");
+    let n = teapot_mesh(&mesh, 0.0);
+    let o = render(&mesh, &["--tolerance", "0.003"]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(text.contains(&format!("({n} triangles")), "{text}");
+    assert!(text.contains("within ±0.003000: 100.0 %") && text.contains("no reference within"), "{text}");
+    // lifted by 0.01 along the normals: +0.01 within the chord error
+    teapot_mesh(&mesh, 0.01);
+    let o = render(&mesh, &["--range", "0.02"]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let grid = text.lines().find(|l| l.starts_with("grid: ")).expect("grid line");
+    let mean: f64 = grid.split("mean ").nth(1).unwrap().split(',').next().unwrap().parse().unwrap();
+    assert!((mean - 0.01).abs() < 0.002, "{grid}");
+    // the independent reference samples, as points: on the surface to 1e-9
+    let samples = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/teapot_reference_samples.xyz");
+    let o = render(std::path::Path::new(samples), &[]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let cloud = text.lines().find(|l| l.starts_with("cloud: ")).expect("cloud line");
+    assert!(cloud.starts_with("cloud: 200 of 200 points"), "{cloud}");
+    let max: f64 = cloud.split("max ").nth(1).unwrap().split(',').next().unwrap().parse().unwrap();
+    assert!(max.abs() < 1e-9, "{cloud}");
+    // refusals
+    let far = d.join("far.xyz");
+    std::fs::write(&far, "100 100 100\n101 100 100\n").unwrap();
+    for (reference, extra, says) in [
+        (far.as_path(), vec![], "no point of the reference"),
+        (mesh.as_path(), vec!["--tolerance", "-1"], "--tolerance -1 must be finite and positive"),
+        (mesh.as_path(), vec!["--deviation-grid", "91"], "--deviation-grid 91 must be in 2…90"),
+        (d.join("scan.ply").as_path(), vec![], "PLY is not read"),
+    ] {
+        if reference.extension().is_some_and(|e| e == "ply") {
+            std::fs::write(reference, "ply\n").unwrap();
+        }
+        let o = render(reference, &extra);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{says}: {err}");
+        assert!(err.contains(says), "{says}: {err}");
+    }
+    let o = hitex(&["nurbs", "render", "teapot", "--mode", "deviation", "-o", out.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--mode deviation needs --reference FILE"));
+    let o = hitex(&["nurbs", "render", "teapot", "--reference", mesh.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--reference is read by --mode deviation only"));
+}

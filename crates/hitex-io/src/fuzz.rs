@@ -49,11 +49,13 @@ pub enum Target {
     /// An MBTiles store: the bytes as a file, opened, its level-0 map and
     /// its DEM read.
     Mbtiles,
+    /// STL meshes, binary or ASCII.
+    Stl,
 }
 
 impl Target {
     /// Every target.
-    pub const ALL: [Target; 17] = [
+    pub const ALL: [Target; 18] = [
         Target::Iges,
         Target::ObjFreeform,
         Target::NurbsJson,
@@ -71,6 +73,7 @@ impl Target {
         Target::Points,
         Target::Exr,
         Target::Mbtiles,
+        Target::Stl,
     ];
 
     /// The target's name: its folder under `fuzz/` and its fuzz binary.
@@ -93,6 +96,7 @@ impl Target {
             Target::Points => "points",
             Target::Exr => "exr",
             Target::Mbtiles => "mbtiles",
+            Target::Stl => "stl",
         }
     }
 
@@ -176,6 +180,11 @@ pub fn run(target: Target, data: &[u8]) -> bool {
             let _ = std::fs::remove_file(&path);
             ok
         }
+        Target::Stl => match crate::stl::parse_stl(data) {
+            // and the search hierarchy built on them, queried once
+            Ok(t) => hitex_core::nurbs::deviation::Reference::mesh(t).closest([0.0; 3], f64::INFINITY).is_some(),
+            Err(_) => false,
+        },
     }
 }
 

@@ -13,7 +13,7 @@ struct Frame {
     camera: vec4<f32>,
     light: vec4<f32>,
     params: vec4<u32>, // mode, isophote bands, stripes, flags (1: prepared kernels, 2: patch boundaries, 4: isolines, 8: sections)
-    ranges: vec4<f32>, // curvature range lo, hi; ambient; 1 / tool radius
+    ranges: vec4<f32>, // curvature range lo, hi (deviation: tolerance, range); ambient; 1 / tool radius
     background: vec4<f32>,
     model: vec4<f32>, // bounding sphere: centre, radius
     pull: vec4<f32>, // draft: unit pull direction, sine of the tolerance
@@ -26,6 +26,8 @@ struct Frame {
 @group(0) @binding(3) var control: texture_2d<f32>;
 // trimming edges: row per patch, texel 0 = (count, albedo r, g, b; r < 0: default), then (u0, v0, u1, v1)
 @group(0) @binding(4) var trims: texture_2d<f32>;
+// signed deviation from a reference: row per patch, texel 0 = grid side G (0: none), then G×G values, v outer
+@group(0) @binding(5) var deviation: texture_2d<f32>;
 
 struct VsIn {
     @location(0) position: vec3<f32>,
@@ -480,6 +482,58 @@ fn draft(facing: vec3<f32>, n: vec3<f32>, light: vec3<f32>, pull: vec4<f32>) -> 
     return base * (0.3 + 0.7 * abs(dot(n, light)));
 }
 
+// values at or below this mean "no reference near" (a sentinel: no NaN in shaders)
+fn no_data(x: f32) -> bool {
+    return x <= -1.0e38;
+}
+
+// the patch's deviation grid at (u, v), bilinear; -3e38 where there is none
+fn deviation_at(pid: i32, u: f32, v: f32) -> f32 {
+    let g = i32(textureLoad(deviation, vec2<i32>(0, pid), 0).x);
+    if g < 2 {
+        return -3.0e38;
+    }
+    let d = domain(pid);
+    var s = 0.0;
+    if d.y > d.x { s = clamp((u - d.x) / (d.y - d.x), 0.0, 1.0) * f32(g - 1); }
+    var r = 0.0;
+    if d.w > d.z { r = clamp((v - d.z) / (d.w - d.z), 0.0, 1.0) * f32(g - 1); }
+    let i = min(i32(floor(s)), g - 2);
+    let j = min(i32(floor(r)), g - 2);
+    let a = s - f32(i);
+    let b = r - f32(j);
+    let c0 = textureLoad(deviation, vec2<i32>(1 + j * g + i, pid), 0).x;
+    let c1 = textureLoad(deviation, vec2<i32>(2 + j * g + i, pid), 0).x;
+    let c2 = textureLoad(deviation, vec2<i32>(1 + (j + 1) * g + i, pid), 0).x;
+    let c3 = textureLoad(deviation, vec2<i32>(2 + (j + 1) * g + i, pid), 0).x;
+    if no_data(c0) || no_data(c1) || no_data(c2) || no_data(c3) {
+        return -3.0e38;
+    }
+    let top = c0 + (c1 - c0) * a;
+    let bottom = c2 + (c3 - c2) * a;
+    return top + (bottom - top) * b;
+}
+
+// deviation classes: within the tolerance, yellow to red outside, cyan to blue inside, grey no data
+fn deviation_color(dv: f32, tol: f32, range: f32) -> vec3<f32> {
+    if no_data(dv) {
+        return vec3<f32>(0.42, 0.42, 0.45);
+    }
+    let a = abs(dv);
+    if a <= tol {
+        return vec3<f32>(0.20, 0.72, 0.30);
+    }
+    let span = range - tol;
+    var t = 1.0;
+    if span > 0.0 { t = clamp((a - tol) / span, 0.0, 1.0); }
+    if dv > 0.0 {
+        let lo = vec3<f32>(0.96, 0.86, 0.20);
+        return lo + (vec3<f32>(0.86, 0.18, 0.15) - lo) * t;
+    }
+    let lo = vec3<f32>(0.45, 0.85, 0.90);
+    return lo + (vec3<f32>(0.12, 0.28, 0.85) - lo) * t;
+}
+
 fn zebra(n: vec3<f32>, view: vec3<f32>, up: vec3<f32>, stripes: u32) -> vec3<f32> {
     let r = n * (2.0 * dot(n, view)) - view;
     let elevation = asin(clamp(dot(r, up), -1.0, 1.0));
@@ -695,6 +749,8 @@ fn fs_main(in: VsOut) -> FsOut {
         c = draft(facing, n, light, frame.pull);
     } else if mode == MODE_RADIUS {
         c = reach_class(e, facing, n, light, frame.ranges.w);
+    } else if mode == MODE_DEVIATION {
+        c = deviation_color(deviation_at(pid, in.u, in.v), frame.ranges.x, frame.ranges.y) * (0.3 + 0.7 * abs(dot(n, light)));
     } else if mode == MODE_HIGHLIGHT {
         let r = frame.model.w;
         c = highlight(e.s, n, light, frame.model.xyz + light * (2.0 * r), 2.0 * r / f32(max(frame.params.z, 1u)));

@@ -131,33 +131,75 @@ pub fn format_value(v: f32) -> String {
 /// and up to four `title` lines (name, units, how the range was chosen)
 /// above it. Lines longer than the strip are cut.
 pub fn diverging_legend(f: &mut Frame, range: f32, title: &[&str]) {
+    let labels = [format!("+{}", format_value(range)), " 0".into(), format!("-{}", format_value(range))];
+    ramp(f, title, 4, 0, &diverging, &labels);
+}
+
+/// Draws the deviation mode's scale in the legend strip: the ramp from
+/// `+range` (top) to `-range` (bottom) with the tolerance band, its values,
+/// a swatch for "no data", and up to three `title` lines above it.
+pub fn deviation_legend(f: &mut Frame, tolerance: f32, range: f32, title: &[&str]) {
+    use crate::cpu::nurbs::deviation_base;
+    let middle =
+        if tolerance > 0.0 && tolerance < range { format!("±{}", format_value(tolerance)) } else { " 0".into() };
+    let labels = [format!("+{}", format_value(range)), middle, format!("-{}", format_value(range))];
+    let color = |t: f32| deviation_base(t * range, tolerance, range);
+    let Some((scale, x0, bar_w, y1)) = ramp(f, title, 3, 2, &color, &labels) else { return };
+    let ys = y1 + 7 * scale;
+    if ys + 5 * scale <= f.height as i64 {
+        let c = quantise(deviation_base(hitex_core::nurbs::deviation::NO_DATA, tolerance, range));
+        for dy in 0..5 * scale {
+            for dx in 0..bar_w {
+                put(f, x0 + dx, ys + dy, c);
+            }
+        }
+        text(f, x0 + bar_w + 2 * scale, ys, scale, "NO DATA", [235, 235, 235]);
+    }
+}
+
+fn quantise(c: glam::Vec3) -> [u8; 3] {
+    [c.x, c.y, c.z].map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
+}
+
+/// A vertical ramp in the legend strip: up to `max_title` title lines, the
+/// bar coloured by `color(t)` for t from +1 (top) to −1 (bottom), `labels`
+/// at its top, middle and bottom, and `reserve` text lines kept free below
+/// it. Returns the font scale, the strip's left edge, the bar's width and
+/// its bottom, or `None` when the frame is too small for a legend.
+fn ramp(
+    f: &mut Frame,
+    title: &[&str],
+    max_title: usize,
+    reserve: i64,
+    color: &dyn Fn(f32) -> glam::Vec3,
+    labels: &[String; 3],
+) -> Option<(i64, i64, i64, i64)> {
     if legend_width(f.width, f.height) == 0 {
-        return;
+        return None;
     }
     let scale = scale_for(f.width, f.height);
     let bar_w = 6 * scale;
     let x0 = f.width as i64 - legend_width(f.width, f.height) as i64 + scale;
     let white = [235, 235, 235];
     let line = 7 * scale;
-    let lines = title.len().min(4) as i64;
+    let lines = title.len().min(max_title) as i64;
     let top = (f.height as i64 / 6).max(lines * line + 2 * scale);
-    for (k, t) in title.iter().take(4).enumerate() {
+    for (k, t) in title.iter().take(max_title).enumerate() {
         let cut: String = t.chars().take(COLUMNS as usize).collect();
         text(f, x0, top - (lines - k as i64) * line, scale, &cut, white);
     }
-    let (y0, y1) = (top + 2 * scale, f.height as i64 * 5 / 6);
+    let (y0, y1) = (top + 2 * scale, f.height as i64 * 5 / 6 - reserve * line);
     for y in y0..y1 {
-        let t = 1.0 - 2.0 * (y - y0) as f32 / (y1 - y0 - 1).max(1) as f32;
-        let c = diverging(t);
-        let q = |v: f32| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+        let c = quantise(color(1.0 - 2.0 * (y - y0) as f32 / (y1 - y0 - 1).max(1) as f32));
         for x in x0..x0 + bar_w {
-            put(f, x, y, [q(c.x), q(c.y), q(c.z)]);
+            put(f, x, y, c);
         }
     }
     let lx = x0 + bar_w + 2 * scale;
-    text(f, lx, y0, scale, &format!("+{}", format_value(range)), white);
-    text(f, lx, (y0 + y1) / 2 - 2 * scale, scale, " 0", white);
-    text(f, lx, y1 - 5 * scale, scale, &format!("-{}", format_value(range)), white);
+    text(f, lx, y0, scale, &labels[0], white);
+    text(f, lx, (y0 + y1) / 2 - 2 * scale, scale, &labels[1], white);
+    text(f, lx, y1 - 5 * scale, scale, &labels[2], white);
+    Some((scale, x0, bar_w, y1))
 }
 
 /// Draws a key of discrete colours (e.g. MIP levels) in the legend strip:

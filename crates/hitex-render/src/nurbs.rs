@@ -53,6 +53,11 @@ pub enum NurbsMode {
     K1,
     /// The smaller principal curvature κ2, same ramp and sign.
     K2,
+    /// Signed deviation from a reference mesh or point cloud
+    /// ([`PreparedNurbs::set_deviation`]): green within the tolerance,
+    /// yellow to red outside the surface, cyan to blue inside, grey where
+    /// the reference has nothing near.
+    Deviation,
 }
 
 impl NurbsMode {
@@ -62,7 +67,7 @@ impl NurbsMode {
     }
 
     /// Every mode with its CLI name.
-    pub const ALL: [(&'static str, NurbsMode); 12] = [
+    pub const ALL: [(&'static str, NurbsMode); 13] = [
         ("shaded", NurbsMode::Shaded),
         ("isophote", NurbsMode::Isophote),
         ("zebra", NurbsMode::Zebra),
@@ -75,6 +80,7 @@ impl NurbsMode {
         ("radius", NurbsMode::Radius),
         ("k1", NurbsMode::K1),
         ("k2", NurbsMode::K2),
+        ("deviation", NurbsMode::Deviation),
     ];
     /// The CLI and scene-file name of the mode.
     pub fn name(self) -> &'static str {
@@ -97,6 +103,7 @@ impl NurbsMode {
             NurbsMode::Radius => RADIUS,
             NurbsMode::K1 => K1,
             NurbsMode::K2 => K2,
+            NurbsMode::Deviation => DEVIATION,
         }
     }
 }
@@ -118,6 +125,7 @@ pub mod mode_index {
     pub const RADIUS: u32 = 9;
     pub const K1: u32 = 10;
     pub const K2: u32 = 11;
+    pub const DEVIATION: u32 = 12;
 }
 
 /// Bits of the flags word (`params.w`) of [`NurbsFrame`].
@@ -184,8 +192,9 @@ pub struct NurbsFrame {
     /// ([`flag`]: prepared-degree kernels, patch boundaries, isoparametric
     /// lines, sections).
     pub params: [u32; 4],
-    /// x, y: curvature range for the colour ramp; z: ambient; w: 1 / the
-    /// tool radius of the radius mode.
+    /// x, y: curvature range for the colour ramp (deviation mode: the
+    /// tolerance and the range); z: ambient; w: 1 / the tool radius of the
+    /// radius mode.
     pub ranges: [f32; 4],
     /// Linear background RGB.
     pub background: [f32; 4],
@@ -222,7 +231,18 @@ pub struct PackedNurbs {
     pub trims: Vec<[f32; 4]>,
     /// Each patch's albedo (linear RGB) where the model gives one.
     pub colors: Vec<Option<[f32; 3]>>,
+    /// Texels per deviation row.
+    pub deviation_width: u32,
+    /// Signed deviation from a reference, one row per patch: texel 0 = the
+    /// grid's side G (0: none), then G×G values over the patch's parameter
+    /// domain, v outer (`1 + j·G + i`), [`hitex_core::nurbs::deviation::NO_DATA`]
+    /// where the reference has nothing near.
+    pub deviation: Vec<f32>,
 }
+
+/// Largest side of a patch's deviation grid (G² + 1 texels fit a row of
+/// 8,192, the smallest texture width adapters guarantee).
+pub const MAX_DEVIATION_GRID: usize = 90;
 
 /// Trimming loops of one patch (closed polylines in its parameter space).
 pub type TrimLoops = Vec<Vec<[f64; 2]>>;
@@ -266,7 +286,28 @@ impl PackedNurbs {
             trim_width: 1,
             trims: vec![[0.0, -1.0, -1.0, -1.0]; rows.max(1)],
             colors: vec![None; rows],
+            deviation_width: 1,
+            deviation: vec![0.0; rows.max(1)],
         }
+    }
+
+    /// Packs a deviation grid of side `grid` per patch (`values[k]`: G×G
+    /// values over patch k's domain, v outer; a patch without values, or
+    /// with fewer, gets none). `grid` is at least 2 and G² + 1 at most the
+    /// texture width limit [`MAX_DEVIATION_GRID`]² + 1.
+    pub fn set_deviation(&mut self, grid: usize, values: &[Vec<f32>]) {
+        let g = grid.clamp(2, MAX_DEVIATION_GRID);
+        let width = g * g + 1;
+        let rows = self.patches as usize;
+        let mut t = vec![0.0f32; width * rows.max(1)];
+        for (k, v) in values.iter().enumerate().take(rows) {
+            if v.len() == g * g {
+                t[k * width] = g as f32;
+                t[k * width + 1..(k + 1) * width].copy_from_slice(v);
+            }
+        }
+        self.deviation_width = width as u32;
+        self.deviation = t;
     }
 
     /// Gives patches their albedo (linear RGB; `None`: the default grey),
@@ -505,6 +546,9 @@ pub struct PreparedNurbs {
     /// Tool radius of the radius mode (model units; 0: 1/50 of the model's
     /// bounding diameter).
     pub tool_radius: f32,
+    /// Deviation mode: `(tolerance, range)` in model units — within ±
+    /// tolerance green, the colour ramps saturate at ± range.
+    pub deviation_range: (f32, f32),
     /// Curvature mapped to full colour on the ramp: [Gaussian, mean,
     /// principal]; by default twice the area-weighted 75th percentile of |K|
     /// and |H| over the surface (over its curved part where flat faces hold
@@ -781,6 +825,7 @@ impl PreparedNurbs {
             pull: Vec3::Z,
             draft_tolerance_deg: DEFAULT_DRAFT_TOLERANCE_DEG,
             tool_radius: 0.0,
+            deviation_range: (0.0, 1.0),
             curvature_range,
             curvature_over_curved_part,
             background: Vec3::new(0.06, 0.07, 0.09),
@@ -822,10 +867,12 @@ impl PreparedNurbs {
             // trims stay: elevation keeps the parameterisation
             let (width, trims) = (self.packed.trim_width, std::mem::take(&mut self.packed.trims));
             let colors = std::mem::take(&mut self.packed.colors);
+            let deviation = (self.packed.deviation_width, std::mem::take(&mut self.packed.deviation));
             self.packed = PackedNurbs::new(&self.surfaces);
             self.packed.trim_width = width;
             self.packed.trims = trims;
             self.packed.colors = colors;
+            (self.packed.deviation_width, self.packed.deviation) = deviation;
             self.id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
         count
@@ -890,6 +937,14 @@ impl PreparedNurbs {
         self.id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     }
 
+    /// Gives patches a deviation grid for the deviation mode (see
+    /// [`PackedNurbs::set_deviation`]; [`hitex_core::nurbs::deviation::deviation_grid`]
+    /// computes one).
+    pub fn set_deviation(&mut self, grid: usize, values: &[Vec<f32>]) {
+        self.packed.set_deviation(grid, values);
+        self.id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    }
+
     /// Trims patches by loops in their parameter space (see [`PackedNurbs::set_trims`]).
     pub fn set_trims(&mut self, trims: &[TrimLoops]) {
         self.packed.set_trims(trims);
@@ -925,7 +980,11 @@ impl PreparedNurbs {
             camera: camera.position.extend(1.0).to_array(),
             light: light.extend(0.0).to_array(),
             params: [self.mode.index(), self.bands, self.stripes, flags],
-            ranges: [-range, range, 0.12, 1.0 / self.effective_tool_radius()],
+            ranges: if self.mode == NurbsMode::Deviation {
+                [self.deviation_range.0, self.deviation_range.1, 0.12, 1.0 / self.effective_tool_radius()]
+            } else {
+                [-range, range, 0.12, 1.0 / self.effective_tool_radius()]
+            },
             background: self.background.extend(1.0).to_array(),
             model: self.bounds.0.extend(self.bounds.1).to_array(),
             pull: self.pull.normalize_or(Vec3::Z).extend(self.draft_tolerance_deg.to_radians().sin()).to_array(),

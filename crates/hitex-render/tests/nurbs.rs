@@ -746,3 +746,63 @@ fn the_principal_ramp_is_scaled_by_the_curved_part_alone() {
     let p = PreparedNurbs::new(vec![plane.clone()], &[plane.domain()], 6);
     assert!((p.curvature_range[2] * p.bounds.1 - 1.0).abs() < 0.05, "{:?} r {}", p.curvature_range, p.bounds.1);
 }
+
+/// Pixels of each deviation class (within tolerance, outside, inside, no
+/// data) by their hue.
+fn deviation_classes(f: &hitex_render::Frame) -> [usize; 4] {
+    let mut n = [0; 4];
+    for px in f.rgba.chunks_exact(4) {
+        let (r, g, b) = (px[0] as f32, px[1] as f32, px[2] as f32);
+        if g > 1.8 * r && g > 1.8 * b {
+            n[0] += 1;
+        } else if r > 2.5 * b && r > 40.0 {
+            n[1] += 1;
+        } else if b > 1.4 * r && b >= g && b > 40.0 {
+            n[2] += 1;
+        } else if (r - g).abs() <= 6.0 && (g - b).abs() <= 8.0 && r > 30.0 {
+            n[3] += 1;
+        }
+    }
+    n
+}
+
+/// The quarter cylinder of radius 1 (normal outwards) against a fine mesh
+/// of the cylinder of radius 1 + lift: every covered pixel shows the class
+/// of the lift, on both backends alike.
+#[test]
+fn deviation_classes_follow_the_reference_on_both_backends() {
+    use hitex_core::nurbs::deviation::{Reference, deviation_grid};
+    let cpu = CpuRenderer::new();
+    let mut gpu = gpu_or_skip("deviation_classes_follow_the_reference_on_both_backends");
+    let cylinder = |r: f64| {
+        let n = 512;
+        let at = |i: usize, z: f64| {
+            let a = std::f64::consts::TAU * i as f64 / n as f64;
+            [r * a.cos(), r * a.sin(), z]
+        };
+        let tris: Vec<[[f64; 3]; 3]> = (0..n)
+            .flat_map(|i| [[at(i, -1.0), at(i + 1, -1.0), at(i + 1, 3.0)], [at(i, -1.0), at(i + 1, 3.0), at(i, 3.0)]])
+            .collect();
+        Reference::mesh(tris)
+    };
+    // (lift, search distance) → the class every covered pixel must show
+    let cases = [(0.02, 1.0, 1), (-0.02, 1.0, 2), (0.002, 1.0, 0), (0.02, 0.01, 3)];
+    for (lift, max, want) in cases {
+        let mut p = quarter_cylinder(false);
+        p.mode = NurbsMode::Deviation;
+        p.deviation_range = (0.005, 0.04);
+        let s = &p.surfaces[0];
+        let g = deviation_grid(s, s.domain(), &cylinder(1.0 + lift), 17, max);
+        p.set_deviation(17, &[g]);
+        let f = cpu.render_nurbs(&p, &p.camera, 96, 96).unwrap();
+        let n = deviation_classes(&f);
+        let covered: usize = n.iter().sum();
+        assert!(covered > 800, "lift {lift}: only {covered} classified pixels ({n:?})");
+        assert_eq!(n[want], covered, "lift {lift}: classes {n:?}, want all in class {want}");
+        if let Some(gp) = gpu.as_mut() {
+            let gf = gp.render_nurbs(&p, &p.camera, 96, 96).unwrap();
+            assert_images(&format!("deviation-{lift}-{max}-gpu"), &gf, &f, GPU_VS_CPU_ALIASED);
+            assert_eq!(deviation_classes(&gf)[want], deviation_classes(&gf).iter().sum::<usize>());
+        }
+    }
+}

@@ -284,6 +284,11 @@ impl<'a> DistanceFace<'a> {
         DistanceFace { surface, range, loops, lo, hi, edges, grid }
     }
 
+    /// The face's surface.
+    pub fn surface(&self) -> &'a NurbsSurface {
+        self.surface
+    }
+
     /// A lower bound of the distance from `p` to the face.
     pub fn lower_bound(&self, p: [f64; 3]) -> f64 {
         let mut d2 = 0.0;

@@ -12,6 +12,7 @@
 
 pub mod basis;
 pub mod continuity;
+pub mod deviation;
 pub mod elevate;
 pub mod knots;
 pub mod measure;

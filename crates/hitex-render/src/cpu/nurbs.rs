@@ -391,6 +391,60 @@ pub fn reach_class(e: &Eval, facing: Vec3, n: Vec3, light: Vec3, inv_radius: f32
     Vec3::from_array(RADIUS_COLORS[class]) * (0.3 + 0.7 * n.dot(light).abs())
 }
 
+/// Deviation-mode colours (output-encoded): within the tolerance; the
+/// outside ramp from the tolerance to the range; the inside ramp likewise;
+/// no reference near.
+pub const DEVIATION_COLORS: [[f32; 3]; 6] = [
+    [0.20, 0.72, 0.30],
+    [0.96, 0.86, 0.20],
+    [0.86, 0.18, 0.15],
+    [0.45, 0.85, 0.90],
+    [0.12, 0.28, 0.85],
+    [0.42, 0.42, 0.45],
+];
+
+/// The deviation mode's colour of a signed deviation `d` (unshaded): green
+/// within ± `tol`, yellow → red from `tol` to `range` outside the surface,
+/// cyan → blue inside, saturated beyond; grey for no data.
+pub fn deviation_base(d: f32, tol: f32, range: f32) -> Vec3 {
+    let k = DEVIATION_COLORS.map(Vec3::from_array);
+    if hitex_core::nurbs::deviation::is_no_data(d) {
+        return k[5];
+    }
+    let a = d.abs();
+    if a <= tol {
+        return k[0];
+    }
+    let span = range - tol;
+    let t = if span > 0.0 { ((a - tol) / span).clamp(0.0, 1.0) } else { 1.0 };
+    if d > 0.0 { k[1] + (k[2] - k[1]) * t } else { k[3] + (k[4] - k[3]) * t }
+}
+
+/// The patch's deviation grid at (u, v): bilinear between its four nodes
+/// over the patch's domain, `NO_DATA` where one has none or the patch has
+/// no grid (twin of `deviation_at` in `nurbs.wgsl`).
+pub fn deviation_at(t: &PackedNurbs, patch: usize, u: f32, v: f32) -> f32 {
+    use hitex_core::nurbs::deviation::{NO_DATA, is_no_data};
+    let w = t.deviation_width as usize;
+    let Some(row) = t.deviation.get(patch * w..(patch + 1) * w) else { return NO_DATA };
+    let g = row[0] as usize;
+    if g < 2 || g * g + 1 > w {
+        return NO_DATA;
+    }
+    let (u0, u1, v0, v1) = domain(t, patch);
+    let s = if u1 > u0 { ((u - u0) / (u1 - u0)).clamp(0.0, 1.0) * (g - 1) as f32 } else { 0.0 };
+    let r = if v1 > v0 { ((v - v0) / (v1 - v0)).clamp(0.0, 1.0) * (g - 1) as f32 } else { 0.0 };
+    let (i, j) = ((s.floor() as usize).min(g - 2), (r.floor() as usize).min(g - 2));
+    let (a, b) = (s - i as f32, r - j as f32);
+    let c = [row[1 + j * g + i], row[2 + j * g + i], row[1 + (j + 1) * g + i], row[2 + (j + 1) * g + i]];
+    if c.iter().any(|&x| is_no_data(x)) {
+        return NO_DATA;
+    }
+    let top = c[0] + (c[1] - c[0]) * a;
+    let bottom = c[2] + (c[3] - c[2]) * a;
+    top + (bottom - top) * b
+}
+
 /// Zebra: the reflected view ray against horizontal light bars.
 pub fn zebra(n: Vec3, view: Vec3, up: Vec3, stripes: u32) -> Vec3 {
     let r = n * (2.0 * n.dot(view)) - view;
@@ -509,6 +563,10 @@ impl<'a> NurbsProgram<'a> {
             }
             DRAFT => raw(draft(facing, n, light, Vec4::from_array(f.pull))),
             RADIUS => raw(reach_class(&e, facing, n, light, f.ranges[3])),
+            DEVIATION => {
+                let d = deviation_at(self.packed, patch, v[3], v[4]);
+                raw(deviation_base(d, f.ranges[0], f.ranges[1]) * (0.3 + 0.7 * n.dot(light).abs()))
+            }
             HIGHLIGHT => {
                 let (c, r) = (Vec3::new(f.model[0], f.model[1], f.model[2]), f.model[3]);
                 raw(highlight(e.s, n, light, c + light * (2.0 * r), 2.0 * r / f.params[2].max(1) as f32))
@@ -1179,6 +1237,50 @@ impl BlockShader<VARYINGS> for NurbsProgram<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The program's f32 lookup of a deviation grid agrees with the f64
+    /// twin in the core, no-data nodes and parameters outside the domain
+    /// included.
+    #[test]
+    fn deviation_lookup_agrees_with_the_core() {
+        use hitex_core::nurbs::deviation::{NO_DATA, grid_value, is_no_data};
+        let s = hitex_core::nurbs::NurbsSurface::new(
+            1,
+            1,
+            2,
+            2,
+            vec![0.5, 0.5, 2.0, 2.0],
+            vec![-1.0, -1.0, 3.0, 3.0],
+            vec![[0.0, 0.0, 0.0, 1.0], [1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 1.0], [1.0, 1.0, 0.0, 1.0]],
+        )
+        .unwrap();
+        let g = 7;
+        let values: Vec<f32> =
+            (0..g * g).map(|k| if k == 30 { NO_DATA } else { ((k * 37) % 11) as f32 * 0.013 - 0.05 }).collect();
+        let mut t = PackedNurbs::new(std::slice::from_ref(&s));
+        t.set_deviation(g, std::slice::from_ref(&values));
+        let mut state = 11u32;
+        let mut rnd = || {
+            state = state.wrapping_mul(1664525).wrapping_add(1013904223);
+            (state >> 8) as f32 / (1 << 24) as f32
+        };
+        let (mut holes, mut worst) = (0, 0.0f32);
+        for _ in 0..2000 {
+            let (u, v) = (rnd() * 2.0, rnd() * 5.0 - 1.5);
+            let got = deviation_at(&t, 0, u, v);
+            let want = grid_value(&values, g, s.domain(), u as f64, v as f64);
+            assert_eq!(is_no_data(got), is_no_data(want), "({u}, {v})");
+            if is_no_data(got) {
+                holes += 1;
+            } else {
+                worst = worst.max((got - want).abs());
+            }
+        }
+        assert!(holes > 20 && worst < 1e-6, "{holes} holes, worst {worst}");
+        // a patch without a grid has no data
+        let bare = PackedNurbs::new(std::slice::from_ref(&s));
+        assert!(is_no_data(deviation_at(&bare, 0, 1.0, 1.0)));
+    }
     use hitex_core::nurbs::NurbsSurface;
 
     /// A rational 6×5 control net with varied weights.

@@ -39,6 +39,7 @@ impl NurbsGpu {
                 texture_entry(2),
                 texture_entry(3),
                 texture_entry(4),
+                texture_entry(5),
             ],
         });
         let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32];
@@ -153,11 +154,21 @@ impl GpuRenderer {
                 rows,
                 bytemuck::cast_slice(&t.trims),
             )?;
+            let dv = float_texture(
+                device,
+                queue,
+                "deviation",
+                wgpu::TextureFormat::R32Float,
+                t.deviation_width,
+                rows,
+                bytemuck::cast_slice(&t.deviation),
+            )?;
             let views = [
                 ku.create_view(&Default::default()),
                 kv.create_view(&Default::default()),
                 cp.create_view(&Default::default()),
                 tr.create_view(&Default::default()),
+                dv.create_view(&Default::default()),
             ];
             let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("nurbs"),
@@ -168,6 +179,7 @@ impl GpuRenderer {
                     wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&views[1]) },
                     wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&views[2]) },
                     wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&views[3]) },
+                    wgpu::BindGroupEntry { binding: 5, resource: wgpu::BindingResource::TextureView(&views[4]) },
                 ],
             });
             ng.uploaded = Some(UploadedMesh::new(device, "nurbs", scene.id(), &scene.vertices, &scene.indices, group));
