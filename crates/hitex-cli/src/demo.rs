@@ -189,6 +189,8 @@ fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) ->
 
 /// The Olinda pair (SRTM-derived DEM and Landsat 7 ETM+ bands, UTM 25S),
 /// embedded so that the showcase needs no files.
+/// A machined part exported as STEP AP214 (planes, cylinders, cones).
+const MACHINED_PART: &[u8] = include_bytes!("../../hitex-io/data/cad/face_recognition_sample_part.stp");
 const OLINDA_DEM: &[u8] = include_bytes!("../../hitex-io/data/olinda/olinda_dem_utm25s.tif");
 const OLINDA_IMAGE: &[u8] = include_bytes!("../../hitex-io/data/olinda/L7_ETMs.tif");
 
@@ -519,6 +521,53 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
     report(
         "deviation.png",
         "deviation from a scan, exact surface points: mesh (teapot-scan.stl) | its vertices (teapot-scan.xyz)",
+        &side_by_side(&[a, b]),
+        ma + mb,
+    )?;
+
+    // the edges `nurbs check` finds, by class: the teapot and a machined part
+    // (written out beside the pictures, to try the commands on)
+    let part_path = out.join("face_recognition_sample_part.stp");
+    hitex_io::write_atomic(&part_path, MACHINED_PART)?;
+    let part = hitex_io::models::load_model(&part_path.to_string_lossy())?;
+    let mut continuity = |model: &hitex_io::models::NurbsModel, turn: f32| -> Result<(Frame, f64), CliError> {
+        let mut p = crate::nurbs_cmd::prepare(model, 8);
+        let line = crate::nurbs_cmd::set_up_continuity(&mut p, model, None, None, None)?;
+        say!("  {}: {line}", model.name);
+        let view = hitex_render::nurbs::ModelView { turn_deg: turn, ..Default::default() };
+        let cam = p.view_camera(&view, 1.0, crate::nurbs_cmd::view_window(side, side, true));
+        let t = Instant::now();
+        let mut f = render_frame(&mut r, &Job::Nurbs { model: &p, camera: cam }, (side, side))?;
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        let entries: Vec<([u8; 3], String)> =
+            crate::nurbs_cmd::CONTINUITY_CLASSES.iter().map(|(_, rgb, label)| (*rgb, label.to_string())).collect();
+        hitex_render::legend::swatch_legend(&mut f, &["CONTINUITY"], &entries);
+        Ok((f, ms))
+    };
+    let (a, ma) = continuity(&teapot, 0.0)?;
+    let (b, mb) = continuity(&part, 40.0)?;
+    report(
+        "continuity.png",
+        "edges by the continuity they reach (nurbs check): teapot | machined part (STEP)",
+        &side_by_side(&[a, b]),
+        ma + mb,
+    )?;
+
+    // a mirror in the procedural studio: the teapot and the machined part
+    let mut studio = |model: &hitex_io::models::NurbsModel, turn: f32| -> Result<(Frame, f64), CliError> {
+        let mut p = crate::nurbs_cmd::prepare(model, 8);
+        p.mode = NurbsMode::Reflection;
+        let view = hitex_render::nurbs::ModelView { turn_deg: turn, ..Default::default() };
+        let cam = p.view_camera(&view, 1.0, crate::nurbs_cmd::view_window(side, side, false));
+        let t = Instant::now();
+        let f = render_frame(&mut r, &Job::Nurbs { model: &p, camera: cam }, (side, side))?;
+        Ok((f, t.elapsed().as_secs_f64() * 1e3))
+    };
+    let (a, ma) = studio(&teapot, 0.0)?;
+    let (b, mb) = studio(&spray, 30.0)?;
+    report(
+        "reflection.png",
+        "a mirror in a procedural studio, exact normals: teapot | 266-patch spray bottle",
         &side_by_side(&[a, b]),
         ma + mb,
     )?;

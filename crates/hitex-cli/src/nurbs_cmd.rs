@@ -89,6 +89,9 @@ pub enum ModeArg {
     K1,
     /// The smaller principal curvature κ2.
     K2,
+    /// A mirror in a procedural photo studio (soft boxes behind and above the viewer): highlights
+    /// as a class-A surfacer judges them.
+    Reflection,
     /// Signed deviation from --reference (a scan's mesh or points): green within --tolerance,
     /// yellow to red outside the surface, cyan to blue inside.
     Deviation,
@@ -110,6 +113,7 @@ impl From<ModeArg> for NurbsMode {
             ModeArg::K1 => NurbsMode::K1,
             ModeArg::K2 => NurbsMode::K2,
             ModeArg::Deviation => NurbsMode::Deviation,
+            ModeArg::Reflection => NurbsMode::Reflection,
         }
     }
 }
@@ -174,6 +178,22 @@ pub struct RenderArgs {
     /// diagonal).
     #[arg(long, allow_negative_numbers = true)]
     pub max_distance: Option<f64>,
+    /// Draw the edges `nurbs check` finds, coloured by the continuity each
+    /// reaches: green G2, yellow G1 (a curvature jump), orange G0 (a crease),
+    /// red a gap beyond --g0, magenta naked (no neighbour).
+    #[arg(long)]
+    pub continuity: bool,
+    /// `--continuity`: largest gap of a shared edge, model units (default:
+    /// 1e-4 of the model's bounding diagonal).
+    #[arg(long, allow_negative_numbers = true)]
+    pub g0: Option<f64>,
+    /// `--continuity`: normals within this many degrees are tangent (default 1).
+    #[arg(long, allow_negative_numbers = true)]
+    pub g1: Option<f64>,
+    /// `--continuity`: a relative jump of the normal curvature within this
+    /// is curvature-continuous (default 0.1).
+    #[arg(long, allow_negative_numbers = true)]
+    pub g2: Option<f64>,
     /// `--mode deviation`: the deviation is measured exactly at G×G
     /// parameter points per face and interpolated between them (2…90).
     #[arg(long, value_name = "G", default_value_t = 48)]
@@ -321,28 +341,27 @@ fn edge_class(e: &hitex_core::nurbs::continuity::Edge, g0: f64, g1: f64, g2: f64
 /// the edges are matched).
 const MAX_CHECK_SAMPLES: u64 = 4_000_000;
 
-fn check(a: CheckArgs) -> Result<(), CliError> {
+/// The edges of a model found and measured as `nurbs check` does.
+pub struct FoundEdges {
+    /// Every edge, shared ones once.
+    pub edges: Vec<hitex_core::nurbs::continuity::Edge>,
+    /// The model's size (its control nets' bounding diagonal).
+    pub size: f64,
+    /// The largest gap allowed (model units).
+    pub g0: f64,
+    /// Sample spacing along the edges.
+    pub spacing: f64,
+    /// Sampling and matching settings.
+    pub opts: hitex_core::nurbs::continuity::CheckOptions,
+    /// Time taken.
+    pub ms: f64,
+}
+
+/// Finds and measures the edges of `m` (`g0`, `spacing`: as given, else
+/// 1e-4 and 1/500 of the model's bounding diagonal), refusing a spacing
+/// whose samples would not fit [`MAX_CHECK_SAMPLES`].
+pub fn find_edges(m: &NurbsModel, g0: Option<f64>, spacing: Option<f64>) -> Result<FoundEdges, CliError> {
     use hitex_core::nurbs::continuity::{CheckOptions, Face, check_with_progress, sample_count};
-    for (name, v) in [("--g0", a.g0), ("--g1", a.g1), ("--g2", a.g2), ("--spacing", a.spacing)] {
-        if let Some(x) = v
-            && !(x.is_finite() && x > 0.0)
-        {
-            return Err(CliError::Input(format!("{name} {x} must be finite and positive")));
-        }
-    }
-    // normals meet at 180° at most: a larger tolerance would gate nothing
-    if let Some(g1) = a.g1
-        && g1 >= 180.0
-    {
-        return Err(CliError::Input(format!("--g1 {g1} must be below 180 degrees")));
-    }
-    let m = load(&a.model, a.chord)?;
-    for w in &m.warnings {
-        eprintln!("hitex: warning: {}: {w}", m.name);
-    }
-    if m.surfaces.is_empty() {
-        return Err(CliError::Input(format!("{}: no surfaces to check", m.name)));
-    }
     // the model's size: the diagonal of its control nets' bounds
     let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     for s in &m.surfaces {
@@ -353,9 +372,8 @@ fn check(a: CheckArgs) -> Result<(), CliError> {
         }
     }
     let size = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt().max(1e-300);
-    let g0 = a.g0.unwrap_or(1e-4 * size);
-    let (g1, g2) = (a.g1.unwrap_or(1.0), a.g2.unwrap_or(0.1));
-    let spacing = a.spacing.unwrap_or(size / 500.0);
+    let g0 = g0.unwrap_or(1e-4 * size);
+    let spacing = spacing.unwrap_or(size / 500.0);
     let opts = CheckOptions { spacing, match_radius: (2.0 * g0).max(2e-3 * size) };
     let faces: Vec<Face> =
         m.surfaces.iter().map(|s| Face { surface: &s.surface, range: s.range, loops: &s.trim }).collect();
@@ -381,6 +399,33 @@ fn check(a: CheckArgs) -> Result<(), CliError> {
     let edges = check_with_progress(&faces, &opts, size, &|| bar.inc(1));
     bar.finish_and_clear();
     let ms = t.elapsed().as_secs_f64() * 1e3;
+    Ok(FoundEdges { edges, size, g0, spacing, opts, ms })
+}
+
+fn check(a: CheckArgs) -> Result<(), CliError> {
+    for (name, v) in [("--g0", a.g0), ("--g1", a.g1), ("--g2", a.g2), ("--spacing", a.spacing)] {
+        if let Some(x) = v
+            && !(x.is_finite() && x > 0.0)
+        {
+            return Err(CliError::Input(format!("{name} {x} must be finite and positive")));
+        }
+    }
+    // normals meet at 180° at most: a larger tolerance would gate nothing
+    if let Some(g1) = a.g1
+        && g1 >= 180.0
+    {
+        return Err(CliError::Input(format!("--g1 {g1} must be below 180 degrees")));
+    }
+    let m = load(&a.model, a.chord)?;
+    for w in &m.warnings {
+        eprintln!("hitex: warning: {}: {w}", m.name);
+    }
+    if m.surfaces.is_empty() {
+        return Err(CliError::Input(format!("{}: no surfaces to check", m.name)));
+    }
+    let found = find_edges(&m, a.g0, a.spacing)?;
+    let FoundEdges { edges, size, g0, spacing, opts, ms } = found;
+    let (g1, g2) = (a.g1.unwrap_or(1.0), a.g2.unwrap_or(0.1));
     let shared: Vec<_> = edges.iter().filter(|e| e.neighbour.is_some()).collect();
     let naked: Vec<_> = edges.iter().filter(|e| e.neighbour.is_none()).collect();
     let failed: Vec<_> = shared
@@ -476,6 +521,77 @@ fn check(a: CheckArgs) -> Result<(), CliError> {
         )));
     }
     Ok(())
+}
+
+/// The classes `nurbs check` gives an edge, with the colour `--continuity`
+/// draws them in and their legend label.
+pub const CONTINUITY_CLASSES: [(&str, [u8; 3], &str); 5] = [
+    ("G2", [60, 200, 90], "G2"),
+    ("G1", [245, 225, 60], "G1"),
+    ("G0", [255, 140, 20], "G0 CREASE"),
+    ("gap", [235, 35, 35], "GAP"),
+    ("naked", [230, 50, 220], "NAKED"),
+];
+
+/// Finds the model's edges as `nurbs check` does and gives `p` each one's
+/// path on both its faces, coloured by its class; returns the report line.
+pub fn set_up_continuity(
+    p: &mut PreparedNurbs,
+    model: &NurbsModel,
+    g0: Option<f64>,
+    g1: Option<f64>,
+    g2: Option<f64>,
+) -> Result<String, CliError> {
+    for (name, v) in [("--g0", g0), ("--g1", g1), ("--g2", g2)] {
+        if let Some(x) = v
+            && !(x.is_finite() && x > 0.0)
+        {
+            return Err(CliError::Input(format!("{name} {x} must be finite and positive")));
+        }
+    }
+    if let Some(t) = g1
+        && t >= 180.0
+    {
+        return Err(CliError::Input(format!("--g1 {t} must be below 180 degrees")));
+    }
+    if model.surfaces.is_empty() {
+        return Ok("continuity: no surfaces".into());
+    }
+    let found = find_edges(model, g0, None)?;
+    let (g1, g2) = (g1.unwrap_or(1.0), g2.unwrap_or(0.1));
+    let mut runs: Vec<Vec<hitex_render::nurbs::EdgeRun>> = vec![Vec::new(); p.surfaces.len()];
+    let mut counts = [0usize; 5];
+    for e in &found.edges {
+        let class = edge_class(e, found.g0, g1, g2);
+        let k = CONTINUITY_CLASSES.iter().position(|c| c.0 == class).unwrap_or(4);
+        counts[k] += 1;
+        let rgb = CONTINUITY_CLASSES[k].1;
+        if let Some(r) = runs.get_mut(e.face) {
+            r.push((e.path.clone(), rgb));
+        }
+        if let Some(b) = e.neighbour
+            && let Some(r) = runs.get_mut(b)
+        {
+            r.push((e.neighbour_path.clone(), rgb));
+        }
+    }
+    p.set_edges(&runs);
+    let names = ["green", "yellow", "orange", "red", "magenta"];
+    let parts: Vec<String> = CONTINUITY_CLASSES
+        .iter()
+        .zip(counts)
+        .zip(names)
+        .filter(|((_, n), _)| *n > 0)
+        .map(|((c, n), colour)| format!("{n} {} ({colour})", c.0))
+        .collect();
+    Ok(format!(
+        "continuity: {} ({}), found as `nurbs check` finds them in {:.0} ms: gap beyond {}, G1 within {g1}°, \
+         G2 within {g2} relative curvature jump",
+        crate::count(found.edges.len(), "edge", "edges"),
+        parts.join(", "),
+        found.ms,
+        fmt(found.g0)
+    ))
 }
 
 /// The smallest of 1, 2, 2.5, 5 × 10^k at or above `x` (> 0).
@@ -1035,14 +1151,29 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 }
                 (None, _) => None,
             };
+            let continuity_report = if a.continuity {
+                Some(set_up_continuity(&mut p, &model, a.g0, a.g1, a.g2)?)
+            } else {
+                for (name, v) in [("--g0", a.g0), ("--g1", a.g1), ("--g2", a.g2)] {
+                    if v.is_some() {
+                        return Err(CliError::Input(format!("{name} is read with --continuity only")));
+                    }
+                }
+                None
+            };
             let view = ModelView { up, turn_deg: a.turn, elevation_deg: a.elevation };
-            let window = view_window(a.size.0, a.size.1, has_legend(p.mode));
+            let window = view_window(a.size.0, a.size.1, has_legend(p.mode) || a.continuity);
             let cam = p.view_camera(&view, a.size.0 as f32 / a.size.1 as f32, window);
             let mut r = open_renderer(a.backend.into())?;
             let t = Instant::now();
             let mut f = render_frame(&mut r, &Job::Nurbs { model: &p, camera: cam }, a.size)?;
             let ms = t.elapsed().as_secs_f64() * 1e3;
             mode_legend(&mut f, &p, a.range.is_some());
+            if a.continuity && !has_legend(p.mode) {
+                let entries: Vec<([u8; 3], String)> =
+                    CONTINUITY_CLASSES.iter().map(|(_, rgb, label)| (*rgb, label.to_string())).collect();
+                hitex_render::legend::swatch_legend(&mut f, &["CONTINUITY"], &entries);
+            }
             save(&f, &a.output)?;
             say!(
                 "wrote {} ({}x{}, {}, mode {}, {}) in {ms:.1} ms",
@@ -1105,7 +1236,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                     }
                 );
             }
-            for line in deviation_report.iter().flatten() {
+            for line in deviation_report.iter().flatten().chain(continuity_report.iter()) {
                 say!("{line}");
             }
             if p.isolines > 0 {

@@ -189,10 +189,11 @@ struct BtfView {
     light: [f32; 2],
 }
 
-const NURBS_MODES: [(NurbsMode, &str); 12] = [
+const NURBS_MODES: [(NurbsMode, &str); 13] = [
     (NurbsMode::Shaded, "shaded"),
     (NurbsMode::Isophote, "isophote"),
     (NurbsMode::Zebra, "zebra"),
+    (NurbsMode::Reflection, "reflection"),
     (NurbsMode::Highlight, "highlight"),
     (NurbsMode::Draft, "draft"),
     (NurbsMode::Radius, "radius"),

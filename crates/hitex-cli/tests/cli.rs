@@ -923,3 +923,47 @@ fn deviation_mode_measures_a_mesh_and_a_cloud_and_refuses_bad_flags() {
     let o = hitex(&["nurbs", "render", "teapot", "--reference", mesh.to_str().unwrap(), "-o", out.to_str().unwrap()]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("--reference is read by --mode deviation only"));
 }
+
+#[test]
+fn continuity_overlay_reports_the_classes_of_check_and_refuses_bad_flags() {
+    let d = tmp("continuity-overlay");
+    let out = d.join("c.png");
+    let part = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/cad/face_recognition_sample_part.stp");
+    let o = hitex(&[
+        "nurbs",
+        "render",
+        part,
+        "--continuity",
+        "--size",
+        "160x120",
+        "--backend",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let line = text.lines().find(|l| l.starts_with("continuity: ")).expect("a continuity line");
+    // the machined part is a closed solid: no naked edge, creases where its faces meet
+    assert!(line.contains("G0 (orange)") && !line.contains("naked"), "{line}");
+    // the check command finds the same number of edges
+    let o = hitex(&["nurbs", "check", part]);
+    let check = String::from_utf8_lossy(&o.stdout);
+    let n: String = line.trim_start_matches("continuity: ").chars().take_while(char::is_ascii_digit).collect();
+    assert!(check.contains(&format!("{n} edges")) || check.contains(&format!("{n} shared")), "{n}: {check}");
+    // the orange of a crease is in the picture
+    let img = image::open(&out).unwrap().to_rgba8();
+    assert!(img.pixels().filter(|p| p.0[..3] == [255, 140, 20]).count() > 50);
+    for (args, says) in [
+        (vec!["--continuity", "--g1", "200"], "--g1 200 must be below 180 degrees"),
+        (vec!["--continuity", "--g0", "0"], "--g0 0 must be finite and positive"),
+        (vec!["--g2", "0.5"], "--g2 is read with --continuity only"),
+    ] {
+        let mut all = vec!["nurbs", "render", "teapot", "-o", out.to_str().unwrap()];
+        all.extend(args);
+        let o = hitex(&all);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{says}: {err}");
+        assert!(err.contains(says), "{says}: {err}");
+    }
+}

@@ -12,12 +12,13 @@ struct Frame {
     view_proj: mat4x4<f32>,
     camera: vec4<f32>,
     light: vec4<f32>,
-    params: vec4<u32>, // mode, isophote bands, stripes, flags (1: prepared kernels, 2: patch boundaries, 4: isolines, 8: sections)
+    params: vec4<u32>, // mode, isophote bands, stripes, flags (1: prepared kernels, 2: patch boundaries, 4: isolines, 8: sections, 16: edges)
     ranges: vec4<f32>, // curvature range lo, hi (deviation: tolerance, range); ambient; 1 / tool radius
     background: vec4<f32>,
     model: vec4<f32>, // bounding sphere: centre, radius
     pull: vec4<f32>, // draft: unit pull direction, sine of the tolerance
     lines: vec4<f32>, // sections: unit normal / spacing; isoparametric lines per patch and direction
+    up: vec4<f32>, // the view's up axis (zebra bars, studio horizon)
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -28,6 +29,8 @@ struct Frame {
 @group(0) @binding(4) var trims: texture_2d<f32>;
 // signed deviation from a reference: row per patch, texel 0 = grid side G (0: none), then G×G values, v outer
 @group(0) @binding(5) var deviation: texture_2d<f32>;
+// edges drawn over the display mode: row per patch, texel 0 = (count, …), then per segment (u0, v0, u1, v1), (r, g, b, 0)
+@group(0) @binding(6) var edges: texture_2d<f32>;
 
 struct VsIn {
     @location(0) position: vec3<f32>,
@@ -534,6 +537,34 @@ fn deviation_color(dv: f32, tol: f32, range: f32) -> vec3<f32> {
     return lo + (vec3<f32>(0.12, 0.28, 0.85) - lo) * t;
 }
 
+// how much of a light of extent c ± half along one angle covers x (degrees; a 1.5° ramp at its edge)
+fn coverage(x: f32, c: f32, half: f32) -> f32 {
+    return clamp((half - abs(x - c)) / 1.5 + 0.5, 0.0, 1.0);
+}
+
+// the radiance a mirror shows of the procedural studio (twin of cpu::nurbs::studio)
+fn studio(n: vec3<f32>, view: vec3<f32>, forward: vec3<f32>, up: vec3<f32>) -> f32 {
+    let r = n * (2.0 * dot(n, view)) - view;
+    let elevation = degrees(asin(clamp(dot(r, up), -1.0, 1.0)));
+    let h = forward - up * dot(forward, up);
+    var back = vec3<f32>(-1.0, 0.0, 0.0);
+    if length(h) > 0.0 {
+        back = -normalize(h);
+    }
+    let side = cross(up, back);
+    let azimuth = degrees(atan2(dot(r, side), dot(r, back)));
+    var light = 0.03;
+    if elevation >= 0.0 {
+        light = 0.08 + 0.17 * elevation / 90.0;
+    }
+    light = max(light, coverage(elevation, 15.0, 6.0) * coverage(azimuth, 0.0, 70.0));
+    light = max(light, coverage(elevation, 40.0, 6.0) * coverage(azimuth, 0.0, 55.0));
+    light = max(light, coverage(elevation, 65.0, 6.0) * coverage(azimuth, 0.0, 40.0));
+    light = max(light, 0.6 * coverage(elevation, -20.0, 5.0) * coverage(azimuth, 0.0, 80.0));
+    light = max(light, 0.45 * coverage(elevation, -45.0, 5.0) * coverage(azimuth, 0.0, 60.0));
+    return max(light, 0.8 * coverage(elevation, 25.0, 35.0) * coverage(azimuth, 100.0, 5.0));
+}
+
 fn zebra(n: vec3<f32>, view: vec3<f32>, up: vec3<f32>, stripes: u32) -> vec3<f32> {
     let r = n * (2.0 * dot(n, view)) - view;
     let elevation = asin(clamp(dot(r, up), -1.0, 1.0));
@@ -612,6 +643,38 @@ fn near_trim(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> bool {
         }
     }
     return false;
+}
+
+// half the width of drawn edges, in pixels
+const EDGE_REACH: f32 = 1.5;
+
+// the colour of the nearest drawn edge within EDGE_REACH pixels of (u, v); x < 0: none
+fn on_edge(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> vec4<f32> {
+    if !(fu > 0.0 && fv > 0.0) {
+        return vec4<f32>(-1.0);
+    }
+    let sx = 1.0 / (EDGE_REACH * fu);
+    let sy = 1.0 / (EDGE_REACH * fv);
+    let n = i32(textureLoad(edges, vec2<i32>(0, pid), 0).x);
+    var best = 2.0;
+    var c = vec4<f32>(-1.0);
+    for (var i = 0; i < n; i = i + 1) {
+        let e = textureLoad(edges, vec2<i32>(1 + 2 * i, pid), 0);
+        let a = vec2<f32>((e.x - u) * sx, (e.y - v) * sy);
+        let d = vec2<f32>((e.z - e.x) * sx, (e.w - e.y) * sy);
+        let dd = dot(d, d);
+        var k = 0.0;
+        if dd > 0.0 {
+            k = clamp(-dot(a, d) / dd, 0.0, 1.0);
+        }
+        let p = a + k * d;
+        let d2 = dot(p, p);
+        if d2 <= 1.0 && d2 < best {
+            best = d2;
+            c = textureLoad(edges, vec2<i32>(2 + 2 * i, pid), 0);
+        }
+    }
+    return c;
 }
 
 // the patch's parameter domain: (u0, u1, v0, v1)
@@ -726,8 +789,11 @@ fn fs_main(in: VsOut) -> FsOut {
     var c: vec3<f32>;
     if mode == MODE_ISOPHOTE {
         c = isophote(n, light, frame.params.y);
+    } else if mode == MODE_REFLECTION {
+        let l = linear_to_srgb(0.9 * studio(n, view, frame.model.xyz - frame.camera.xyz, frame.up.xyz));
+        c = vec3<f32>(l);
     } else if mode == MODE_ZEBRA {
-        c = zebra(n, view, vec3<f32>(0.0, 0.0, 1.0), frame.params.z);
+        c = zebra(n, view, frame.up.xyz, frame.params.z);
     } else if mode == MODE_GAUSS || mode == MODE_MEAN {
         let kh = curvatures(e, n);
         var value = kh.y;
@@ -771,6 +837,12 @@ fn fs_main(in: VsOut) -> FsOut {
     }
     if (frame.params.w & 8u) == 8u && on_section(e, frame.lines.xyz, g) {
         c = SECTION_RGB;
+    }
+    if (frame.params.w & 16u) == 16u {
+        let ec = on_edge(pid, in.u, in.v, fu, fv);
+        if ec.x >= 0.0 {
+            c = ec.xyz;
+        }
     }
     if (frame.params.w & 2u) == 2u && on_boundary(pid, in.u, in.v, fu, fv) {
         c = vec3<f32>(20.0 / 255.0, 20.0 / 255.0, 24.0 / 255.0);

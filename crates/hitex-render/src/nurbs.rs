@@ -53,6 +53,10 @@ pub enum NurbsMode {
     K1,
     /// The smaller principal curvature κ2, same ramp and sign.
     K2,
+    /// A mirror reflecting a procedural photo studio (soft boxes behind
+    /// and above the viewer, one at the side, a dark floor): the
+    /// highlights a class-A surface is judged by, from the exact normal.
+    Reflection,
     /// Signed deviation from a reference mesh or point cloud
     /// ([`PreparedNurbs::set_deviation`]): green within the tolerance,
     /// yellow to red outside the surface, cyan to blue inside, grey where
@@ -67,7 +71,7 @@ impl NurbsMode {
     }
 
     /// Every mode with its CLI name.
-    pub const ALL: [(&'static str, NurbsMode); 13] = [
+    pub const ALL: [(&'static str, NurbsMode); 14] = [
         ("shaded", NurbsMode::Shaded),
         ("isophote", NurbsMode::Isophote),
         ("zebra", NurbsMode::Zebra),
@@ -81,6 +85,7 @@ impl NurbsMode {
         ("k1", NurbsMode::K1),
         ("k2", NurbsMode::K2),
         ("deviation", NurbsMode::Deviation),
+        ("reflection", NurbsMode::Reflection),
     ];
     /// The CLI and scene-file name of the mode.
     pub fn name(self) -> &'static str {
@@ -104,6 +109,7 @@ impl NurbsMode {
             NurbsMode::K1 => K1,
             NurbsMode::K2 => K2,
             NurbsMode::Deviation => DEVIATION,
+            NurbsMode::Reflection => REFLECTION,
         }
     }
 }
@@ -126,6 +132,7 @@ pub mod mode_index {
     pub const K1: u32 = 10;
     pub const K2: u32 = 11;
     pub const DEVIATION: u32 = 12;
+    pub const REFLECTION: u32 = 13;
 }
 
 /// Bits of the flags word (`params.w`) of [`NurbsFrame`].
@@ -138,6 +145,8 @@ pub mod flag {
     pub const ISOLINES: u32 = 4;
     /// Section curves of a plane family (`lines.xyz` = normal / spacing).
     pub const SECTIONS: u32 = 8;
+    /// Classified edges ([`super::PackedNurbs::edges`]).
+    pub const EDGES: u32 = 16;
 }
 
 /// Overlay colours (sRGB bytes): isoparametric lines and section curves.
@@ -206,6 +215,9 @@ pub struct NurbsFrame {
     /// spacing (a section wherever `P·xyz` is a whole number), w the
     /// isoparametric lines per patch and direction.
     pub lines: [f32; 4],
+    /// The view's up axis (unit; the model's up): the zebra's light bars
+    /// and the studio's horizon lie across it.
+    pub up: [f32; 4],
 }
 
 /// The paper's textures, as flat arrays (row-major, one row per patch).
@@ -231,6 +243,13 @@ pub struct PackedNurbs {
     pub trims: Vec<[f32; 4]>,
     /// Each patch's albedo (linear RGB) where the model gives one.
     pub colors: Vec<Option<[f32; 3]>>,
+    /// Texels per edge row.
+    pub edges_width: u32,
+    /// Edges drawn over the display mode, one row per patch: texel 0 =
+    /// (segment count, 0, 0, 0), then per segment its ends in the patch's
+    /// parameters `(u0, v0, u1, v1)` and its colour `(r, g, b, 0)` (output
+    /// encoded, 0–1). Set by [`PackedNurbs::set_edges`].
+    pub edges: Vec<[f32; 4]>,
     /// Texels per deviation row.
     pub deviation_width: u32,
     /// Signed deviation from a reference, one row per patch: texel 0 = the
@@ -239,6 +258,13 @@ pub struct PackedNurbs {
     /// where the reference has nothing near.
     pub deviation: Vec<f32>,
 }
+
+/// A polyline in a patch's parameters and the colour it is drawn in
+/// (output-encoded RGB bytes).
+pub type EdgeRun = (Vec<[f64; 2]>, [u8; 3]);
+
+/// Most edge segments drawn on one patch (2 texels each in a row of 8,192).
+pub const MAX_EDGE_SEGMENTS: usize = 4095;
 
 /// Largest side of a patch's deviation grid (G² + 1 texels fit a row of
 /// 8,192, the smallest texture width adapters guarantee).
@@ -288,7 +314,62 @@ impl PackedNurbs {
             colors: vec![None; rows],
             deviation_width: 1,
             deviation: vec![0.0; rows.max(1)],
+            edges_width: 1,
+            edges: vec![[0.0; 4]; rows.max(1)],
         }
+    }
+
+    /// Packs polylines to draw over the display mode: for each patch, runs
+    /// of parameter points with one colour (output-encoded RGB bytes).
+    /// Consecutive points more than half the patch's domain apart (a run
+    /// across a periodic seam) are not joined; a patch's segments beyond
+    /// [`MAX_EDGE_SEGMENTS`] are thinned evenly.
+    pub fn set_edges(&mut self, runs: &[Vec<EdgeRun>]) {
+        let rows = self.patches as usize;
+        let segments: Vec<Vec<([f32; 4], [f32; 4])>> = (0..rows)
+            .map(|k| {
+                let (u0, u1, v0, v1) = self.domain(k);
+                let (hu, hv) = (0.5 * (u1 - u0).abs(), 0.5 * (v1 - v0).abs());
+                let mut out = Vec::new();
+                for (pts, rgb) in runs.get(k).map(Vec::as_slice).unwrap_or(&[]) {
+                    let c = [rgb[0] as f32 / 255.0, rgb[1] as f32 / 255.0, rgb[2] as f32 / 255.0, 0.0];
+                    for w in pts.windows(2) {
+                        let (a, b) = (w[0].map(|x| x as f32), w[1].map(|x| x as f32));
+                        if (a[0] - b[0]).abs() <= hu && (a[1] - b[1]).abs() <= hv {
+                            out.push(([a[0], a[1], b[0], b[1]], c));
+                        }
+                    }
+                    // a run of one point: a dot
+                    if pts.len() == 1 {
+                        let a = pts[0].map(|x| x as f32);
+                        out.push(([a[0], a[1], a[0], a[1]], c));
+                    }
+                }
+                let step = out.len().div_ceil(MAX_EDGE_SEGMENTS).max(1);
+                out.into_iter().step_by(step).collect()
+            })
+            .collect();
+        let width = segments.iter().map(|s| 2 * s.len() + 1).max().unwrap_or(1);
+        let mut t = vec![[0.0f32; 4]; width * rows.max(1)];
+        for (k, segs) in segments.iter().enumerate() {
+            t[k * width] = [segs.len() as f32, 0.0, 0.0, 0.0];
+            for (i, (e, c)) in segs.iter().enumerate() {
+                t[k * width + 1 + 2 * i] = *e;
+                t[k * width + 2 + 2 * i] = *c;
+            }
+        }
+        self.edges_width = width as u32;
+        self.edges = t;
+    }
+
+    /// Patch `k`'s parameter domain `(u0, u1, v0, v1)` from the packed knots.
+    fn domain(&self, k: usize) -> (f32, f32, f32, f32) {
+        let (kw, cw) = (self.knot_width as usize, self.cp_width as usize);
+        let head = self.control[k * cw];
+        let (p, q, nu, nv) = (head[0] as usize, head[1] as usize, head[2] as usize, head[3] as usize);
+        let ku = |i: usize| self.knots_u.get(k * kw + 1 + i).copied().unwrap_or(0.0);
+        let kv = |i: usize| self.knots_v.get(k * kw + 1 + i).copied().unwrap_or(0.0);
+        (ku(p), ku(nu), kv(q), kv(nv))
     }
 
     /// Packs a deviation grid of side `grid` per patch (`values[k]`: G×G
@@ -574,6 +655,8 @@ pub struct PreparedNurbs {
     /// Draw section curves of the planes `P·normal = k·spacing` (a unit
     /// normal and a spacing in model units), one pixel wide.
     pub sections: Option<(Vec3, f32)>,
+    /// Draw the edges set by [`PreparedNurbs::set_edges`] (three pixels wide).
+    pub edges: bool,
     /// Direction towards the light; `None`: over the viewer's shoulder.
     pub light: Option<Vec3>,
     /// Bounding sphere of the tessellation: centre, radius.
@@ -833,6 +916,7 @@ impl PreparedNurbs {
             boundaries: false,
             isolines: 0,
             sections: None,
+            edges: false,
             light: None,
             bounds: (center, radius),
             tess_deviation: deviation,
@@ -868,11 +952,13 @@ impl PreparedNurbs {
             let (width, trims) = (self.packed.trim_width, std::mem::take(&mut self.packed.trims));
             let colors = std::mem::take(&mut self.packed.colors);
             let deviation = (self.packed.deviation_width, std::mem::take(&mut self.packed.deviation));
+            let edges = (self.packed.edges_width, std::mem::take(&mut self.packed.edges));
             self.packed = PackedNurbs::new(&self.surfaces);
             self.packed.trim_width = width;
             self.packed.trims = trims;
             self.packed.colors = colors;
             (self.packed.deviation_width, self.packed.deviation) = deviation;
+            (self.packed.edges_width, self.packed.edges) = edges;
             self.id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
         count
@@ -937,6 +1023,14 @@ impl PreparedNurbs {
         self.id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     }
 
+    /// Gives patches polylines to draw over the display mode (see
+    /// [`PackedNurbs::set_edges`]) and turns the overlay on.
+    pub fn set_edges(&mut self, runs: &[Vec<EdgeRun>]) {
+        self.packed.set_edges(runs);
+        self.edges = true;
+        self.id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    }
+
     /// Gives patches a deviation grid for the deviation mode (see
     /// [`PackedNurbs::set_deviation`]; [`hitex_core::nurbs::deviation::deviation_grid`]
     /// computes one).
@@ -974,7 +1068,8 @@ impl PreparedNurbs {
         let flags = if self.prepared_kernels { flag::PREPARED } else { 0 }
             | if self.boundaries { flag::BOUNDARIES } else { 0 }
             | if self.isolines > 0 { flag::ISOLINES } else { 0 }
-            | if sections.is_some() { flag::SECTIONS } else { 0 };
+            | if sections.is_some() { flag::SECTIONS } else { 0 }
+            | if self.edges { flag::EDGES } else { 0 };
         NurbsFrame {
             view_proj: vp.to_cols_array_2d(),
             camera: camera.position.extend(1.0).to_array(),
@@ -989,6 +1084,7 @@ impl PreparedNurbs {
             model: self.bounds.0.extend(self.bounds.1).to_array(),
             pull: self.pull.normalize_or(Vec3::Z).extend(self.draft_tolerance_deg.to_radians().sin()).to_array(),
             lines: sections.unwrap_or(Vec3::ZERO).extend(self.isolines as f32).to_array(),
+            up: camera.up.normalize_or(Vec3::Z).extend(0.0).to_array(),
         }
     }
 

@@ -806,3 +806,66 @@ fn deviation_classes_follow_the_reference_on_both_backends() {
         }
     }
 }
+
+/// Edges drawn over the display mode: a run across the middle of the
+/// quarter cylinder and one along its lower side show in their colours on
+/// both backends alike, about three pixels wide; none without the flag.
+#[test]
+fn drawn_edges_show_in_their_colours_on_both_backends() {
+    let cpu = CpuRenderer::new();
+    let mut gpu = gpu_or_skip("drawn_edges_show_in_their_colours_on_both_backends");
+    let count = |f: &hitex_render::Frame, rgb: [u8; 3]| {
+        f.rgba.chunks_exact(4).filter(|p| p[0] == rgb[0] && p[1] == rgb[1] && p[2] == rgb[2]).count()
+    };
+    let (red, green) = ([235, 35, 35], [60, 200, 90]);
+    let mut p = quarter_cylinder(false);
+    p.mode = NurbsMode::Shaded;
+    let plain = cpu.render_nurbs(&p, &p.camera, 128, 128).unwrap();
+    let middle: Vec<[f64; 2]> = (0..=20).map(|i| [0.5, i as f64 / 20.0]).collect();
+    let side: Vec<[f64; 2]> = (0..=20).map(|i| [i as f64 / 20.0, 0.0]).collect();
+    p.set_edges(&[vec![(middle, red), (side, green)]]);
+    let f = cpu.render_nurbs(&p, &p.camera, 128, 128).unwrap();
+    let (r, g) = (count(&f, red), count(&f, green));
+    assert_eq!((count(&plain, red), count(&plain, green)), (0, 0));
+    // the sheet stands almost edge-on in this view: the middle line runs some
+    // 40 pixels down the frame, two to three wide
+    assert!((40..600).contains(&r), "{r} red pixels");
+    assert!(g > 20, "{g} green pixels");
+    if let Some(gp) = gpu.as_mut() {
+        let gf = gp.render_nurbs(&p, &p.camera, 128, 128).unwrap();
+        assert_images("edges-gpu", &gf, &f, GPU_VS_CPU_ALIASED);
+        let (gr, gg) = (count(&gf, red), count(&gf, green));
+        assert!(gr.abs_diff(r) * 10 <= r && gg.abs_diff(g) * 5 <= g, "GPU {gr}/{gg} vs CPU {r}/{g}");
+    }
+}
+
+/// The reflection mode on the teapot shows the studio's
+/// soft boxes (bright pixels) against its sky and floor (dark ones), on both
+/// backends alike.
+#[test]
+fn reflection_shows_the_studio_on_both_backends() {
+    let cpu = CpuRenderer::new();
+    let mut gpu = gpu_or_skip("reflection_shows_the_studio_on_both_backends");
+    let mut p = teapot();
+    p.mode = NurbsMode::Reflection;
+    let f = cpu.render_nurbs(&p, &p.camera, 128, 128).unwrap();
+    let grey = |f: &hitex_render::Frame| {
+        let (mut bright, mut dark) = (0, 0);
+        let bg = &f.rgba[..4];
+        for px in f.rgba.chunks_exact(4).filter(|px| *px != bg) {
+            assert!(px[0] == px[1] && px[1] == px[2], "not grey: {px:?}");
+            if px[0] >= 200 {
+                bright += 1;
+            } else if px[0] < 110 && px[0] > 0 {
+                dark += 1;
+            }
+        }
+        (bright, dark)
+    };
+    let (bright, dark) = grey(&f);
+    assert!(bright > 300 && dark > 300, "{bright} bright, {dark} dark pixels");
+    if let Some(g) = gpu.as_mut() {
+        let gf = g.render_nurbs(&p, &p.camera, 128, 128).unwrap();
+        assert_images("reflection-gpu", &gf, &f, GPU_VS_CPU_ALIASED);
+    }
+}

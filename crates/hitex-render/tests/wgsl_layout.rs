@@ -104,6 +104,7 @@ fn nurbs_uniform_matches_the_shader() {
             ("model", offset_of!(NurbsFrame, model)),
             ("pull", offset_of!(NurbsFrame, pull)),
             ("lines", offset_of!(NurbsFrame, lines)),
+            ("up", offset_of!(NurbsFrame, up)),
         ],
     );
 }

@@ -85,6 +85,13 @@ pub struct Edge {
     pub g1_deg: Worst,
     /// Largest relative jump of the normal curvature across the edge.
     pub g2_rel: Worst,
+    /// The samples' parameters on `face`, in order along the edge (for
+    /// drawing it; not part of the report).
+    #[serde(skip)]
+    pub path: Vec<[f64; 2]>,
+    /// The same samples' parameters on the neighbour (empty when naked).
+    #[serde(skip)]
+    pub neighbour_path: Vec<[f64; 2]>,
 }
 
 /// One boundary sample of a face.
@@ -372,6 +379,8 @@ pub fn check_with_progress(faces: &[Face], opts: &CheckOptions, size: f64, face_
                         g0: Worst::NONE,
                         g1_deg: Worst::NONE,
                         g2_rel: Worst::NONE,
+                        path: Vec::new(),
+                        neighbour_path: Vec::new(),
                     };
                     while i < n && id(&matched[(start + i) % n]) == who {
                         let j = (start + i) % n;
@@ -380,7 +389,9 @@ pub fn check_with_progress(faces: &[Face], opts: &CheckOptions, size: f64, face_
                         let prev = l[(j + n - 1) % n];
                         edge.samples += 1;
                         edge.length += v3::len(v3::sub(next.p, s.p));
+                        edge.path.push(s.uv);
                         if let Some((fb, uvb, dist)) = matched[j] {
+                            edge.neighbour_path.push(uvb);
                             let fb_face = &faces[fb];
                             edge.g0.take(dist, s.p);
                             let na = face_a.surface.normal(s.uv[0], s.uv[1]);

@@ -265,6 +265,37 @@ fn near_trim(t: &PackedNurbs, patch: usize, u: f32, v: f32, fu: f32, fv: f32) ->
     false
 }
 
+/// Half the width of drawn edges, in pixels (as `fu`, `fv` measure them).
+pub const EDGE_REACH: f32 = 1.5;
+
+/// The colour (output-encoded) of the nearest drawn edge within
+/// [`EDGE_REACH`] pixels of (u, v) on `patch`, if any (twin of `on_edge` in
+/// `nurbs.wgsl`).
+pub fn on_edge(t: &PackedNurbs, patch: usize, u: f32, v: f32, fu: f32, fv: f32) -> Option<[f32; 3]> {
+    if !(fu > 0.0 && fv > 0.0) {
+        return None;
+    }
+    let (sx, sy) = (1.0 / (EDGE_REACH * fu), 1.0 / (EDGE_REACH * fv));
+    let w = t.edges_width as usize;
+    let row = t.edges.get(patch * w..(patch + 1) * w)?;
+    let n = (row[0][0] as usize).min((w - 1) / 2);
+    let mut best = (2.0f32, None);
+    for i in 0..n {
+        let e = row[1 + 2 * i];
+        let (ax, ay) = ((e[0] - u) * sx, (e[1] - v) * sy);
+        let (dx, dy) = ((e[2] - e[0]) * sx, (e[3] - e[1]) * sy);
+        let dd = dx * dx + dy * dy;
+        let k = if dd > 0.0 { (-(ax * dx + ay * dy) / dd).clamp(0.0, 1.0) } else { 0.0 };
+        let (px, py) = (ax + k * dx, ay + k * dy);
+        let d2 = px * px + py * py;
+        if d2 <= 1.0 && d2 < best.0 {
+            let c = row[2 + 2 * i];
+            best = (d2, Some([c[0], c[1], c[2]]));
+        }
+    }
+    best.1
+}
+
 /// fwidth of varying `j` for the four lanes of quad `quad` of a block.
 fn fwidth_quad(b: &Block<VARYINGS>, j: usize, quad: usize) -> [f32; 4] {
     let (dx, dy) = grads_quad(b, j, quad);
@@ -445,6 +476,46 @@ pub fn deviation_at(t: &PackedNurbs, patch: usize, u: f32, v: f32) -> f32 {
     top + (bottom - top) * b
 }
 
+/// The studio's soft boxes: elevation of the centre, half height, half
+/// width in azimuth (degrees, azimuth 0 straight behind the viewer), and
+/// brightness: three overhead, two dimmer ones low on the floor's cove
+/// (which vertical walls seen from above reflect).
+const SOFT_BOXES: [[f32; 4]; 5] = [
+    [15.0, 6.0, 70.0, 1.0],
+    [40.0, 6.0, 55.0, 1.0],
+    [65.0, 6.0, 40.0, 1.0],
+    [-20.0, 5.0, 80.0, 0.6],
+    [-45.0, 5.0, 60.0, 0.45],
+];
+
+/// How much of a light whose extent along one angle is `c ± half` covers
+/// `x`: 1 inside, 0 outside, a linear ramp 1.5° wide across its edge.
+fn coverage(x: f32, c: f32, half: f32) -> f32 {
+    ((half - (x - c).abs()) / 1.5 + 0.5).clamp(0.0, 1.0)
+}
+
+/// Reflection mode: the radiance (linear) a mirror at normal `n` shows the
+/// eye at `view` (unit, towards the eye) of a procedural studio: three
+/// horizontal soft boxes behind and above the viewer, two dimmer ones
+/// below the horizon, a vertical one at its side, a sky graded towards the
+/// zenith and a dark floor; `forward`
+/// is the viewer's horizontal looking direction (azimuths are measured from
+/// its opposite), `up` the model's up axis.
+pub fn studio(n: Vec3, view: Vec3, forward: Vec3, up: Vec3) -> f32 {
+    let r = n * (2.0 * n.dot(view)) - view;
+    let elevation = r.dot(up).clamp(-1.0, 1.0).asin().to_degrees();
+    // azimuth in the horizontal plane, 0 straight behind the viewer
+    let back = -(forward - up * forward.dot(up)).normalize_or(Vec3::X);
+    let side = up.cross(back);
+    let azimuth = r.dot(side).atan2(r.dot(back)).to_degrees();
+    let mut light = if elevation < 0.0 { 0.03 } else { 0.08 + 0.17 * elevation / 90.0 };
+    for b in SOFT_BOXES {
+        light = light.max(b[3] * coverage(elevation, b[0], b[1]) * coverage(azimuth, 0.0, b[2]));
+    }
+    // the side light: a tall strip at azimuth 100°
+    light.max(0.8 * coverage(elevation, 25.0, 35.0) * coverage(azimuth, 100.0, 5.0))
+}
+
 /// Zebra: the reflected view ray against horizontal light bars.
 pub fn zebra(n: Vec3, view: Vec3, up: Vec3, stripes: u32) -> Vec3 {
     let r = n * (2.0 * n.dot(view)) - view;
@@ -543,7 +614,13 @@ impl<'a> NurbsProgram<'a> {
         };
         let rgba = match mode {
             ISOPHOTE => raw(isophote(n, light, f.params[1])),
-            ZEBRA => raw(zebra(n, view, Vec3::Z, f.params[2])),
+            ZEBRA => raw(zebra(n, view, Vec3::new(f.up[0], f.up[1], f.up[2]), f.params[2])),
+            REFLECTION => {
+                let forward = Vec3::new(f.model[0] - cam.x, f.model[1] - cam.y, f.model[2] - cam.z);
+                let l = 0.9 * studio(n, view, forward, Vec3::new(f.up[0], f.up[1], f.up[2]));
+                let e = hitex_core::texture::linear_to_srgb_u8(l);
+                [e, e, e, 255]
+            }
             GAUSS | MEAN => {
                 let (k, h) = curvatures(&e, n);
                 let value = if mode == GAUSS { k } else { h };
@@ -589,6 +666,11 @@ impl<'a> NurbsProgram<'a> {
         if flags & flag::SECTIONS != 0 && on_section(&e, Vec3::new(f.lines[0], f.lines[1], f.lines[2]), g) {
             rgba = [SECTION_RGB[0], SECTION_RGB[1], SECTION_RGB[2], 255];
         }
+        if flags & flag::EDGES != 0
+            && let Some(c) = on_edge(self.packed, patch, v[3], v[4], fu, fv)
+        {
+            rgba = raw(Vec3::from_array(c));
+        }
         (rgba, depth)
     }
 }
@@ -607,7 +689,7 @@ impl NurbsProgram<'_> {
         let f = self.frame;
         let t = self.packed;
         let mode = f.params[0];
-        let overlays = flag::BOUNDARIES | flag::ISOLINES | flag::SECTIONS;
+        let overlays = flag::BOUNDARIES | flag::ISOLINES | flag::SECTIONS | flag::EDGES;
         if !matches!(mode, SHADED | ISOPHOTE | NORMAL)
             || f.params[3] & (flag::PREPARED | overlays) != flag::PREPARED
             || b.live == 0
@@ -1237,6 +1319,42 @@ impl BlockShader<VARYINGS> for NurbsProgram<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The studio by hand: a viewer looking along +X at a mirror whose
+    /// normal leans back towards it by half the reflected ray's elevation.
+    #[test]
+    fn studio_lights_where_its_soft_boxes_are() {
+        let (forward, up, view) = (Vec3::X, Vec3::Z, Vec3::NEG_X);
+        let tilt = |deg: f32| {
+            let a = deg.to_radians();
+            Vec3::new(-a.cos(), 0.0, a.sin())
+        };
+        // reflected elevation 15° and 40°: the first two soft boxes
+        assert!((studio(tilt(7.5), view, forward, up) - 1.0).abs() < 1e-5);
+        assert!((studio(tilt(20.0), view, forward, up) - 1.0).abs() < 1e-5);
+        // 28°: between them, the sky's grade
+        let sky = 0.08 + 0.17 * 28.0 / 90.0;
+        assert!((studio(tilt(14.0), view, forward, up) - sky).abs() < 1e-4);
+        // head on: the horizon, no box
+        assert!((studio(tilt(0.0), view, forward, up) - 0.08).abs() < 1e-5);
+        // a floor seen from above reflects the sky ahead; seen from below, the floor
+        let down = Vec3::new(1.0, 0.0, -1.0).normalize();
+        assert!((studio(Vec3::Z, -down, forward, up) - (0.08 + 0.17 * 0.5)).abs() < 1e-4);
+        assert!((studio(Vec3::NEG_Z, -Vec3::new(1.0, 0.0, 1.0).normalize(), forward, up) - 0.03).abs() < 1e-6);
+        // a wall facing the viewer, seen from 20° above, reflects the cove's box at −20°
+        assert!(
+            (studio(Vec3::NEG_X, (tilt(0.0) + Vec3::Z * 20f32.to_radians().tan()).normalize(), forward, up) - 0.6)
+                .abs()
+                < 1e-4
+        );
+        // the side light at azimuth 100° (to the viewer's right seen from behind)
+        let side = up.cross(-forward);
+        let r =
+            ((-forward) * 100f32.to_radians().cos() + side * 100f32.to_radians().sin() + up * 25f32.to_radians().tan())
+                .normalize();
+        let n = (r + view).normalize();
+        assert!((studio(n, view, forward, up) - 0.8).abs() < 1e-4);
+    }
 
     /// The program's f32 lookup of a deviation grid agrees with the f64
     /// twin in the core, no-data nodes and parameters outside the domain

@@ -40,6 +40,7 @@ impl NurbsGpu {
                 texture_entry(3),
                 texture_entry(4),
                 texture_entry(5),
+                texture_entry(6),
             ],
         });
         let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32];
@@ -163,12 +164,22 @@ impl GpuRenderer {
                 rows,
                 bytemuck::cast_slice(&t.deviation),
             )?;
+            let ed = float_texture(
+                device,
+                queue,
+                "edges",
+                wgpu::TextureFormat::Rgba32Float,
+                t.edges_width,
+                rows,
+                bytemuck::cast_slice(&t.edges),
+            )?;
             let views = [
                 ku.create_view(&Default::default()),
                 kv.create_view(&Default::default()),
                 cp.create_view(&Default::default()),
                 tr.create_view(&Default::default()),
                 dv.create_view(&Default::default()),
+                ed.create_view(&Default::default()),
             ];
             let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("nurbs"),
@@ -180,6 +191,7 @@ impl GpuRenderer {
                     wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&views[2]) },
                     wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&views[3]) },
                     wgpu::BindGroupEntry { binding: 5, resource: wgpu::BindingResource::TextureView(&views[4]) },
+                    wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::TextureView(&views[5]) },
                 ],
             });
             ng.uploaded = Some(UploadedMesh::new(device, "nurbs", scene.id(), &scene.vertices, &scene.indices, group));
