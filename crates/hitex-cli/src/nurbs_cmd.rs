@@ -435,6 +435,14 @@ fn check(a: CheckArgs) -> Result<(), CliError> {
         })
         .collect();
     let de = |i: usize| m.surfaces[i].directory_entry;
+    // faces lying on each other over an area, within the gap tolerance
+    let faces: Vec<hitex_core::nurbs::continuity::Face> = m
+        .surfaces
+        .iter()
+        .map(|s| hitex_core::nurbs::continuity::Face { surface: &s.surface, range: s.range, loops: &s.trim })
+        .collect();
+    let overlaps = hitex_core::nurbs::continuity::overlaps(&faces, g0, 8);
+    let non_manifold: Vec<_> = shared.iter().filter(|e| !e.also.is_empty()).collect();
     if a.json {
         let rows: Vec<_> = edges
             .iter()
@@ -445,6 +453,7 @@ fn check(a: CheckArgs) -> Result<(), CliError> {
                     "samples": e.samples, "length": e.length,
                     "g0": e.g0, "g1_deg": e.g1_deg, "g2_rel": e.g2_rel,
                     "class": edge_class(e, g0, g1, g2),
+                    "also": e.also,
                 })
             })
             .collect();
@@ -455,6 +464,8 @@ fn check(a: CheckArgs) -> Result<(), CliError> {
             "spacing": spacing, "match_radius": opts.match_radius,
             "shared_edges": shared.len(), "naked_edges": naked.len(), "failed": failed.len(),
             "edges": rows,
+            "non_manifold_edges": non_manifold.len(),
+            "overlaps": overlaps,
         });
         say!("{}", serde_json::to_string_pretty(&v).map_err(|e| CliError::Internal(e.to_string()))?);
     } else {
@@ -510,6 +521,36 @@ fn check(a: CheckArgs) -> Result<(), CliError> {
                 e.g1_deg.value,
                 e.g2_rel.value
             );
+        }
+        if !non_manifold.is_empty() {
+            say!(
+                "{} shared by three faces or more (a solid's boundary has none; in an assembly, parts in contact):",
+                crate::count(non_manifold.len(), "edge", "edges")
+            );
+            for e in &non_manifold {
+                let also: Vec<String> = e.also.iter().map(usize::to_string).collect();
+                say!("  {}–{} also meets face {}", e.face, e.neighbour.unwrap_or(e.face), also.join(", "));
+            }
+        }
+        if overlaps.is_empty() {
+            say!("no faces lie on each other (interiors sampled 8×8 per face, within the gap tolerance)");
+        } else {
+            say!(
+                "{} lying on each other (faces given twice; in an assembly, parts in contact):",
+                crate::count(overlaps.len(), "pair of faces", "pairs of faces")
+            );
+            for o in &overlaps {
+                say!(
+                    "  {}–{}: {:.0} % of face {}'s interior samples, e.g. at ({}, {}, {})",
+                    o.face,
+                    o.other,
+                    100.0 * o.fraction,
+                    o.face,
+                    fmt(o.at[0]),
+                    fmt(o.at[1]),
+                    fmt(o.at[2])
+                );
+            }
         }
     }
     if !failed.is_empty() {

@@ -967,3 +967,37 @@ fn continuity_overlay_reports_the_classes_of_check_and_refuses_bad_flags() {
         assert!(err.contains(says), "{says}: {err}");
     }
 }
+
+#[test]
+fn check_reports_faces_lying_on_each_other_and_edges_of_three_faces() {
+    let d = tmp("check-overlaps");
+    // the teapot with its first patch given twice
+    let json = d.join("teapot.json");
+    let o = hitex(&["nurbs", "export", "teapot", "-o", json.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let patches = v["patches"].as_array_mut().unwrap();
+    let first = patches[0].clone();
+    patches.push(first);
+    let twice = d.join("twice.json");
+    std::fs::write(&twice, serde_json::to_vec(&v).unwrap()).unwrap();
+    let o = hitex(&["nurbs", "check", twice.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("1 pair of faces lying on each other") && text.contains("  0–32: 100 %"), "{text}");
+    // the copy's edges lie on the original's: each is met by a third face
+    assert!(text.contains("shared by three faces or more"), "{text}");
+    let o = hitex(&["nurbs", "check", twice.to_str().unwrap(), "--json"]);
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["overlaps"].as_array().unwrap().len(), 1);
+    assert!(j["non_manifold_edges"].as_u64().unwrap() > 0);
+    // the teapot and the machined part as they are: neither
+    let part = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/cad/face_recognition_sample_part.stp");
+    for model in ["teapot", part] {
+        let o = hitex(&["nurbs", "check", model]);
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert!(
+            text.contains("no faces lie on each other") && !text.contains("three faces or more"),
+            "{model}: {text}"
+        );
+    }
+}

@@ -85,6 +85,12 @@ pub struct Edge {
     pub g1_deg: Worst,
     /// Largest relative jump of the normal curvature across the edge.
     pub g2_rel: Worst,
+    /// Further faces along the edge besides the neighbour (within a
+    /// twentieth of the matching radius — the default gap tolerance — at
+    /// three of its samples or more, and at least a tenth of them; a
+    /// corner's faces come that near at one or two): an edge
+    /// shared by three faces or more, which a solid's boundary never has.
+    pub also: Vec<usize>,
     /// The samples' parameters on `face`, in order along the edge (for
     /// drawing it; not part of the report).
     #[serde(skip)]
@@ -379,9 +385,11 @@ pub fn check_with_progress(faces: &[Face], opts: &CheckOptions, size: f64, face_
                         g0: Worst::NONE,
                         g1_deg: Worst::NONE,
                         g2_rel: Worst::NONE,
+                        also: Vec::new(),
                         path: Vec::new(),
                         neighbour_path: Vec::new(),
                     };
+                    let mut others: HashMap<usize, usize> = HashMap::new();
                     while i < n && id(&matched[(start + i) % n]) == who {
                         let j = (start + i) % n;
                         let s = l[j];
@@ -390,6 +398,11 @@ pub fn check_with_progress(faces: &[Face], opts: &CheckOptions, size: f64, face_
                         edge.samples += 1;
                         edge.length += v3::len(v3::sub(next.p, s.p));
                         edge.path.push(s.uv);
+                        for m in &all[j] {
+                            if Some(m.0) != who && m.0 != fa && m.2 <= 0.05 * opts.match_radius {
+                                *others.entry(m.0).or_default() += 1;
+                            }
+                        }
                         if let Some((fb, uvb, dist)) = matched[j] {
                             edge.neighbour_path.push(uvb);
                             let fb_face = &faces[fb];
@@ -415,6 +428,15 @@ pub fn check_with_progress(faces: &[Face], opts: &CheckOptions, size: f64, face_
                         }
                         i += 1;
                     }
+                    if who.is_some() && edge.samples >= 3 {
+                        // a corner's faces come within reach at one or two samples
+                        edge.also = others
+                            .into_iter()
+                            .filter(|(_, c)| *c >= 3 && 10 * c >= edge.samples)
+                            .map(|(f, _)| f)
+                            .collect();
+                        edge.also.sort_unstable();
+                    }
                     edge.g0 = edge.g0.settled();
                     edge.g1_deg = edge.g1_deg.settled();
                     edge.g2_rel = edge.g2_rel.settled();
@@ -429,9 +451,105 @@ pub fn check_with_progress(faces: &[Face], opts: &CheckOptions, size: f64, face_
     per_face.into_iter().flatten().filter(|e| e.neighbour.is_none_or(|b| e.face < b)).collect()
 }
 
+/// Two faces lying on each other over an area (a face exported twice, or
+/// faces of touching parts that coincide).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Overlap {
+    /// The face whose samples were measured (of the pair, the one with the
+    /// larger share on the other).
+    pub face: usize,
+    /// The face it lies on.
+    pub other: usize,
+    /// The share of `face`'s interior samples lying on `other`.
+    pub fraction: f64,
+    /// One such sample.
+    pub at: [f64; 3],
+}
+
+/// Pairs of faces lying on each other: each face's interior (an `n`×`n`
+/// grid of its parameter range at cell centres, kept where its trims keep
+/// it) is measured against the faces its bounds cannot rule out, as `nurbs
+/// deviation` measures points (inversion onto the kept part of the face); a
+/// pair is reported when at least two samples and a twentieth of one face's
+/// samples lie within `tol` of the other face. Faces that only meet along
+/// an edge have no interior sample within `tol` of each other.
+pub fn overlaps(faces: &[Face], tol: f64, n: usize) -> Vec<Overlap> {
+    use super::measure::{DistanceFace, inside_loops};
+    use rayon::prelude::*;
+    let measured: Vec<DistanceFace> = faces.iter().map(|f| DistanceFace::new(f.surface, f.range, f.loops)).collect();
+    let n = n.max(1);
+    let found: Vec<Vec<Overlap>> = faces
+        .par_iter()
+        .enumerate()
+        .map(|(a, f)| {
+            let ((u0, u1), (v0, v1)) = f.range;
+            let mut kept = 0usize;
+            let mut hits: std::collections::BTreeMap<usize, (usize, [f64; 3])> = Default::default();
+            for i in 0..n {
+                for j in 0..n {
+                    let uv =
+                        [u0 + (u1 - u0) * (i as f64 + 0.5) / n as f64, v0 + (v1 - v0) * (j as f64 + 0.5) / n as f64];
+                    if !f.loops.is_empty() && !inside_loops(f.loops, uv) {
+                        continue;
+                    }
+                    kept += 1;
+                    let p = f.surface.point(uv[0], uv[1]);
+                    for (b, g) in measured.iter().enumerate() {
+                        if b == a || g.lower_bound(p) > tol {
+                            continue;
+                        }
+                        if g.distance(p).0 <= tol {
+                            hits.entry(b).or_insert((0, p)).0 += 1;
+                        }
+                    }
+                }
+            }
+            hits.into_iter()
+                .filter(|(_, (c, _))| *c >= 2 && 20 * c >= kept)
+                .map(|(b, (c, at))| Overlap { face: a, other: b, fraction: c as f64 / kept.max(1) as f64, at })
+                .collect()
+        })
+        .collect();
+    // each pair once, from the face with the larger share on the other
+    let mut pairs: std::collections::BTreeMap<(usize, usize), Overlap> = Default::default();
+    for o in found.into_iter().flatten() {
+        let key = (o.face.min(o.other), o.face.max(o.other));
+        match pairs.get(&key) {
+            Some(old) if old.fraction >= o.fraction => {}
+            _ => {
+                pairs.insert(key, o);
+            }
+        }
+    }
+    pairs.into_values().collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Three half-planes meeting along one line (a T of sheets): the edge
+    /// names its third face; a face given twice overlaps itself entirely,
+    /// while faces meeting along an edge do not overlap.
+    #[test]
+    fn a_third_face_on_an_edge_and_a_face_given_twice_are_found() {
+        let a = quad([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]]);
+        let b = quad([[1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 1.0, 0.0], [2.0, 1.0, 0.0]]);
+        let c = quad([[1.0, 0.0, 0.0], [1.0, 0.0, 1.0], [1.0, 1.0, 0.0], [1.0, 1.0, 1.0]]);
+        let edges = run(&[a.clone(), b.clone(), c.clone()]);
+        let t: Vec<_> = edges.iter().filter(|e| !e.also.is_empty()).collect();
+        assert_eq!(t.len(), 1, "{edges:#?}");
+        assert_eq!((t[0].face, t[0].neighbour, t[0].also.clone()), (0, Some(1), vec![2]));
+        // two sheets only: no third face anywhere
+        assert!(run(&[a.clone(), b.clone()]).iter().all(|e| e.also.is_empty()));
+        // overlaps: a given twice, against b and c that only touch it
+        let surfaces = [a.clone(), b, c, a];
+        let faces: Vec<Face> = surfaces.iter().map(|s| Face { surface: s, range: s.domain(), loops: &[] }).collect();
+        let o = overlaps(&faces, 1e-6, 8);
+        assert_eq!(o.len(), 1, "{o:?}");
+        assert_eq!((o[0].face, o[0].other), (0, 3));
+        assert!((o[0].fraction - 1.0).abs() < 1e-12);
+    }
 
     /// A bilinear patch from four corners.
     fn quad(p: [[f64; 3]; 4]) -> NurbsSurface {
