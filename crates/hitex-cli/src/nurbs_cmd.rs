@@ -402,20 +402,27 @@ pub fn find_edges(m: &NurbsModel, g0: Option<f64>, spacing: Option<f64>) -> Resu
     Ok(FoundEdges { edges, size, g0, spacing, opts, ms })
 }
 
-fn check(a: CheckArgs) -> Result<(), CliError> {
-    for (name, v) in [("--g0", a.g0), ("--g1", a.g1), ("--g2", a.g2), ("--spacing", a.spacing)] {
+/// Refuses continuity tolerances (and a spacing) that are not finite and
+/// positive, and a G1 angle of 180° or more (normals meet at 180° at most: it
+/// would gate nothing).
+fn check_tolerances(g0: Option<f64>, g1: Option<f64>, g2: Option<f64>, spacing: Option<f64>) -> Result<(), CliError> {
+    for (name, v) in [("--g0", g0), ("--g1", g1), ("--g2", g2), ("--spacing", spacing)] {
         if let Some(x) = v
             && !(x.is_finite() && x > 0.0)
         {
             return Err(CliError::Input(format!("{name} {x} must be finite and positive")));
         }
     }
-    // normals meet at 180° at most: a larger tolerance would gate nothing
-    if let Some(g1) = a.g1
-        && g1 >= 180.0
+    if let Some(t) = g1
+        && t >= 180.0
     {
-        return Err(CliError::Input(format!("--g1 {g1} must be below 180 degrees")));
+        return Err(CliError::Input(format!("--g1 {t} must be below 180 degrees")));
     }
+    Ok(())
+}
+
+fn check(a: CheckArgs) -> Result<(), CliError> {
+    check_tolerances(a.g0, a.g1, a.g2, a.spacing)?;
     let m = load(&a.model, a.chord)?;
     for w in &m.warnings {
         eprintln!("hitex: warning: {}: {w}", m.name);
@@ -583,18 +590,7 @@ pub fn set_up_continuity(
     g1: Option<f64>,
     g2: Option<f64>,
 ) -> Result<String, CliError> {
-    for (name, v) in [("--g0", g0), ("--g1", g1), ("--g2", g2)] {
-        if let Some(x) = v
-            && !(x.is_finite() && x > 0.0)
-        {
-            return Err(CliError::Input(format!("{name} {x} must be finite and positive")));
-        }
-    }
-    if let Some(t) = g1
-        && t >= 180.0
-    {
-        return Err(CliError::Input(format!("--g1 {t} must be below 180 degrees")));
-    }
+    check_tolerances(g0, g1, g2, None)?;
     if model.surfaces.is_empty() {
         return Ok("continuity: no surfaces".into());
     }
