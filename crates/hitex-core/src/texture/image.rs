@@ -182,7 +182,8 @@ impl SrgbEncoder {
     /// The cell of a value in [0, 1].
     #[inline(always)]
     fn cell(l: f32) -> usize {
-        ((l * (ENCODE_CELLS - 1) as f32) as usize).min(ENCODE_CELLS - 1)
+        // (a saturating `as usize` would run lane by lane in lane loops)
+        (super::sampler::to_u32_clamped(l * (ENCODE_CELLS - 1) as f32) as usize).min(ENCODE_CELLS - 1)
     }
 
     /// [`linear_to_srgb_u8`].

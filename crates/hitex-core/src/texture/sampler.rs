@@ -154,6 +154,19 @@ pub fn wrap_index(i: i32, n: i32, wrap: Wrap) -> i32 {
     }
 }
 
+/// `t as u32` for lane loops: NaN and negative values give 0, values from
+/// 2³¹ on 2³¹ − 128, whole values in between themselves (fractions are cut).
+/// Rust's saturating `as` conversions compile lane by lane on x86 vector
+/// levels (scalar conversions and fix-ups); this one clamps first so that
+/// the plain conversion (one vector instruction) is always in range.
+#[inline(always)]
+pub fn to_u32_clamped(t: f32) -> u32 {
+    #[allow(clippy::manual_clamp)] // clamp would keep NaN
+    let c = t.max(0.0).min(2_147_483_520.0);
+    // SAFETY: c is finite and in [0, 2³¹ − 128], inside i32's range
+    unsafe { c.to_int_unchecked::<i32>() as u32 }
+}
+
 /// `floor`, inlined where the platform's `floorf` is a library call, in
 /// float operations only (no conversion to an integer, which vector code
 /// pays for in range fixups): adding and subtracting 2²³ rounds |t| to an
@@ -218,6 +231,23 @@ mod tests {
     use crate::assert_near;
     use crate::texture::image::{ColorSpace, Image};
     use proptest::prelude::*;
+
+    #[test]
+    fn clamped_conversion_matches_as_in_range_and_clamps_outside() {
+        for t in [0.0f32, 0.3, 1.0, 1.99, 255.0, 4095.5, 16_777_216.0, 2_147_483_520.0] {
+            assert_eq!(to_u32_clamped(t), t as u32, "{t}");
+        }
+        for (t, want) in [
+            (-0.5f32, 0),
+            (-1e30, 0),
+            (f32::NAN, 0),
+            (f32::NEG_INFINITY, 0),
+            (f32::INFINITY, 2_147_483_520),
+            (4e9, 2_147_483_520),
+        ] {
+            assert_eq!(to_u32_clamped(t), want, "{t}");
+        }
+    }
 
     fn lin(data: Vec<[u8; 4]>, w: u32, h: u32) -> MipPyramid {
         MipPyramid::build(Image::new(w, h, ColorSpace::Linear, data).unwrap())

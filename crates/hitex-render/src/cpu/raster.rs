@@ -564,6 +564,21 @@ fn edge(ax: i64, ay: i64, bx: i64, by: i64, px: i64, py: i64) -> i64 {
     (bx - ax) * (py - ay) - (by - ay) * (px - ax)
 }
 
+/// `e as f32` for an edge function value, in vector operations only (x86
+/// below AVX-512 has no vector conversion from i64, and `as f32` runs lane
+/// by lane): `e` added to the bits of 2⁵² + 2⁵¹ is that double's integer
+/// `e` (exact for |e| < 2⁵¹), the subtraction leaves `e` exactly as an f64,
+/// which rounds to the nearest f32 as the direct conversion does. Edge
+/// values stay below 2⁵⁰: snapped coordinates lie within the guard band of
+/// a frame of at most 16,384 pixels a side, |x| < 2.5 · 16,384 · 256 < 2²⁴,
+/// so differences are below 2²⁵ and an edge function, a difference of two
+/// products of them, below 2⁵⁰ at every pixel of the frame.
+#[inline(always)]
+fn edge_to_f32(e: i64) -> f32 {
+    const MAGIC: f64 = 6_755_399_441_055_744.0; // 2^52 + 2^51
+    (f64::from_bits((e as u64).wrapping_add(MAGIC.to_bits())) - MAGIC) as f32
+}
+
 /// The lane offsets (in pixels) of a block: quad `q` (left to right), lane
 /// `l` of the quad ((0,0) (1,0) (0,1) (1,1)) is lane `4q + l`.
 #[inline(always)]
@@ -813,8 +828,8 @@ fn raster_block<const K: usize, S: BlockShader<K>, Sm: pulp::Simd>(
     let mut l1 = [0.0f32; LANES];
     let mut l2 = [0.0f32; LANES];
     for lane in 0..LANES {
-        l1[lane] = (e_row[1] + offs[1][lane]) as f32 * t.inv_area;
-        l2[lane] = (e_row[2] + offs[2][lane]) as f32 * t.inv_area;
+        l1[lane] = edge_to_f32(e_row[1] + offs[1][lane]) * t.inv_area;
+        l2[lane] = edge_to_f32(e_row[2] + offs[2][lane]) * t.inv_area;
     }
     let mut z = [0.0f32; LANES];
     for lane in 0..LANES {
@@ -941,6 +956,22 @@ mod tests {
             }
         }
         count
+    }
+
+    #[test]
+    fn edge_conversion_matches_as_f32_below_two_to_the_51() {
+        let mut x = 0x2545_f491_4f6c_dd1du64;
+        let mut cases = vec![0i64, 1, -1, (1 << 24) + 1, -(1 << 24) - 1, (1 << 50) - 1, -(1 << 50), (1 << 51) - 1];
+        for _ in 0..100_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            // magnitudes spread over every exponent up to 2^51
+            cases.push(((x >> 13) as i64) >> (x % 52));
+        }
+        for e in cases {
+            assert_eq!(edge_to_f32(e).to_bits(), (e as f32).to_bits(), "{e}");
+        }
     }
 
     #[test]

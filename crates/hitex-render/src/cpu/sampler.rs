@@ -75,12 +75,8 @@ impl<'a> LaneSampler<'a> {
     pub fn sample(&self, u: &Lanes, v: &Lanes, j: &LaneJacobian, live: u16) -> Rgb {
         let (u, v) = (self.reduce(u), self.reduce(v));
         match self.opts.filter {
-            Filter::Nearest => self.nearest(&u, &v, live),
-            Filter::Bilinear => {
-                let mut out = [[1.0; LANES]; 3];
-                self.bilinear(&[0; LANES], &u, &v, live, &mut out);
-                out
-            }
+            Filter::Nearest => self.nearest(&u, &v),
+            Filter::Bilinear => self.trilinear(&[0; LANES], &[0; LANES], &[0.0; LANES], false, &u, &v, live),
             Filter::Trilinear => {
                 let lambda = self.level_of_detail(j);
                 let max_level = (self.levels.len() - 1) as f32;
@@ -93,23 +89,11 @@ impl<'a> LaneSampler<'a> {
                     let l = if l.is_nan() { 0.0 } else { l.clamp(0.0, max_level) };
                     let f = simd::floor(l);
                     gamma[i] = l - f;
-                    l0[i] = f as u8;
-                    l1[i] = (f as u8 + 1).min(max_level as u8);
+                    l0[i] = simd::whole_u32(f) as u8;
+                    l1[i] = (l0[i] + 1).min(max_level as u8);
                     blend |= ((gamma[i] > 0.0) as u16) << i;
                 }
-                let mut c0 = [[1.0; LANES]; 3];
-                self.bilinear(&l0, &u, &v, live, &mut c0);
-                let mut c1 = c0;
-                if live & blend != 0 {
-                    self.bilinear(&l1, &u, &v, live, &mut c1);
-                }
-                let mut out = c0;
-                for c in 0..3 {
-                    for i in 0..LANES {
-                        out[c][i] = c0[c][i] + (c1[c][i] - c0[c][i]) * gamma[i];
-                    }
-                }
-                out
+                self.trilinear(&l0, &l1, &gamma, live & blend != 0, &u, &v, live)
             }
         }
     }
@@ -172,126 +156,170 @@ impl<'a> LaneSampler<'a> {
     }
 
     #[inline(always)]
-    fn nearest(&self, u: &Lanes, v: &Lanes, live: u16) -> Rgb {
+    fn nearest(&self, u: &Lanes, v: &Lanes) -> Rgb {
         let l = &self.levels[0];
         let (w, h) = ([l.width as f32; LANES], [l.height as f32; LANES]);
         let x = self.wrap(&lanes!(|i| simd::floor(u[i] * w[i])), &w);
         let y = self.wrap(&lanes!(|i| simd::floor(v[i] * h[i])), &h);
         let mut out = [[1.0; LANES]; 3];
-        let last = l.texels.len() - 1;
+        let texels: &[u32] = bytemuck::cast_slice(l.texels);
+        let Some(last) = texels.len().checked_sub(1) else { return out };
+        // every lane reads (helpers too, at indices as valid as any): no branch
         for i in 0..LANES {
-            if live & (1 << i) != 0 {
-                let t = l.texels[(y[i] as usize * l.width as usize + x[i] as usize).min(last)];
+            let at = simd::whole_u32(y[i]).wrapping_mul(l.width).wrapping_add(simd::whole_u32(x[i]));
+            let p = texels[(at as usize).min(last)];
+            for c in 0..3 {
+                out[c][i] = self.lut[((p >> (8 * c)) & 0xff) as usize];
+            }
+        }
+        out
+    }
+
+    /// Eq. (4)'s t_c per lane: the bilinear lookup in level `l0[lane]`,
+    /// and when `blend`, the one in `l1[lane]` mixed in by `gamma[lane]`
+    /// (`c0 + (c1 − c0)·γ`). Coordinates, wrapping and weights run on lane
+    /// vectors; then each lane reads its texels and blends them at once
+    /// (blending as vectors afterwards would load values just stored one
+    /// lane at a time, which the store buffer cannot forward). Every lane
+    /// reads (a helper lane's indices are as valid as any), so the reads have
+    /// no branch; when the live lanes share their levels (almost always)
+    /// the levels' sizes and texels are hoisted out of the lanes.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn trilinear(
+        &self,
+        l0: &[u8; LANES],
+        l1: &[u8; LANES],
+        gamma: &Lanes,
+        blend: bool,
+        u: &Lanes,
+        v: &Lanes,
+        live: u16,
+    ) -> Rgb {
+        let first = (live.trailing_zeros() as usize).min(LANES - 1);
+        let mut same = true;
+        for i in 0..LANES {
+            same &= live & (1 << i) == 0 || (l0[i] == l0[first] && l1[i] == l1[first]);
+        }
+        let mut out = [[1.0; LANES]; 3];
+        let last_level = self.levels.len() - 1;
+        if same {
+            let a = &self.levels[(l0[first] as usize).min(last_level)];
+            let b = &self.levels[(l1[first] as usize).min(last_level)];
+            let (ta, tb): (&[u32], &[u32]) = (bytemuck::cast_slice(a.texels), bytemuck::cast_slice(b.texels));
+            let (Some(la), Some(lb)) = (ta.len().checked_sub(1), tb.len().checked_sub(1)) else { return out };
+            let pa = self.taps(&[a.width as f32; LANES], &[a.height as f32; LANES], u, v);
+            if blend {
+                let pb = self.taps(&[b.width as f32; LANES], &[b.height as f32; LANES], u, v);
+                for i in 0..LANES {
+                    let c0 = self.read(ta, la, &pa, i);
+                    let c1 = self.read(tb, lb, &pb, i);
+                    for c in 0..3 {
+                        out[c][i] = c0[c] + (c1[c] - c0[c]) * gamma[i];
+                    }
+                }
+            } else {
+                for i in 0..LANES {
+                    let c0 = self.read(ta, la, &pa, i);
+                    for c in 0..3 {
+                        out[c][i] = c0[c];
+                    }
+                }
+            }
+        } else {
+            // lanes on different levels: sizes and texels lane by lane
+            let size = |l: &[u8; LANES]| -> (Lanes, Lanes) {
+                let mut w = [1.0; LANES];
+                let mut h = [1.0; LANES];
+                for i in 0..LANES {
+                    let lv = &self.levels[(l[i] as usize).min(last_level)];
+                    (w[i], h[i]) = (lv.width as f32, lv.height as f32);
+                }
+                (w, h)
+            };
+            let (wa, ha) = size(l0);
+            let pa = self.taps(&wa, &ha, u, v);
+            let (wb, hb) = size(l1);
+            let pb = self.taps(&wb, &hb, u, v);
+            for i in 0..LANES {
+                let a = &self.levels[(l0[i] as usize).min(last_level)];
+                let ta: &[u32] = bytemuck::cast_slice(a.texels);
+                let Some(la) = ta.len().checked_sub(1) else { continue };
+                let c0 = self.read(ta, la, &pa, i);
+                let c1 = if blend {
+                    let b = &self.levels[(l1[i] as usize).min(last_level)];
+                    let tb: &[u32] = bytemuck::cast_slice(b.texels);
+                    let Some(lb) = tb.len().checked_sub(1) else { continue };
+                    self.read(tb, lb, &pb, i)
+                } else {
+                    c0
+                };
                 for c in 0..3 {
-                    out[c][i] = self.lut[t[c] as usize];
+                    out[c][i] = c0[c] + (c1[c] - c0[c]) * gamma[i];
                 }
             }
         }
         out
     }
 
-    /// Bilinear lookup per lane in level `lvl[lane]` (eq. (4)'s t_c): the four
-    /// texels around `uv·size − ½` weighted by the fractional position.
-    /// Every lane reads (a helper lane's indices are as valid as any), so the
-    /// gather has no branch; when the live lanes share one level (almost
-    /// always) its size and texels are hoisted out of the lanes.
+    /// The bilinear footprint per lane in a level of `w` × `h` texels: the
+    /// four texels around `uv·size − ½` (offsets, wrapped) and the
+    /// fractional position.
     #[inline(always)]
-    fn bilinear(&self, lvl: &[u8; LANES], u: &Lanes, v: &Lanes, live: u16, out: &mut Rgb) {
-        let first = lvl[(live.trailing_zeros() as usize).min(LANES - 1)];
-        let mut same = true;
-        for i in 0..LANES {
-            same &= live & (1 << i) == 0 || lvl[i] == first;
-        }
-        if same {
-            self.bilinear_in::<true>(&[first; LANES], u, v, out);
-        } else {
-            self.bilinear_in::<false>(lvl, u, v, out);
-        }
-    }
-
-    #[inline(always)]
-    fn bilinear_in<const UNIFORM: bool>(&self, lvl: &[u8; LANES], u: &Lanes, v: &Lanes, out: &mut Rgb) {
-        let mut w = [0.0; LANES];
-        let mut h = [0.0; LANES];
-        let one = &self.levels[(lvl[0] as usize).min(self.levels.len() - 1)];
-        if UNIFORM {
-            w = [one.width as f32; LANES];
-            h = [one.height as f32; LANES];
-        } else {
-            for i in 0..LANES {
-                let l = &self.levels[lvl[i] as usize];
-                w[i] = l.width as f32;
-                h[i] = l.height as f32;
-            }
-        }
+    fn taps(&self, w: &Lanes, h: &Lanes, u: &Lanes, v: &Lanes) -> Taps {
         let x: Lanes = lanes!(|i| u[i] * w[i] - 0.5);
         let y: Lanes = lanes!(|i| v[i] * h[i] - 0.5);
         let xf: Lanes = lanes!(|i| simd::floor(x[i]));
         let yf: Lanes = lanes!(|i| simd::floor(y[i]));
         let alpha: Lanes = lanes!(|i| x[i] - xf[i]);
         let beta: Lanes = lanes!(|i| y[i] - yf[i]);
-        let xa = self.wrap(&xf, &w);
-        let xb = self.wrap(&lanes!(|i| xf[i] + 1.0), &w);
-        let ya = self.wrap(&yf, &h);
-        let yb = self.wrap(&lanes!(|i| yf[i] + 1.0), &h);
+        let xa = self.wrap(&xf, w);
+        let xb = self.wrap(&lanes!(|i| xf[i] + 1.0), w);
+        let ya = self.wrap(&yf, h);
+        let yb = self.wrap(&lanes!(|i| yf[i] + 1.0), h);
         // texel offsets as integers (exact beyond 2^24 texels)
-        let mut ra = [0u32; LANES];
-        let mut rb = [0u32; LANES];
-        let mut ca = [0u32; LANES];
-        let mut cb = [0u32; LANES];
+        let mut at = [[0u32; LANES]; 4];
         for i in 0..LANES {
-            let stride = w[i] as u32;
-            ra[i] = (ya[i] as u32).wrapping_mul(stride);
-            rb[i] = (yb[i] as u32).wrapping_mul(stride);
-            ca[i] = xa[i] as u32;
-            cb[i] = xb[i] as u32;
+            let stride = simd::whole_u32(w[i]);
+            let (ra, rb) = (simd::whole_u32(ya[i]).wrapping_mul(stride), simd::whole_u32(yb[i]).wrapping_mul(stride));
+            let (ca, cb) = (simd::whole_u32(xa[i]), simd::whole_u32(xb[i]));
+            at[0][i] = ra.wrapping_add(ca);
+            at[1][i] = ra.wrapping_add(cb);
+            at[2][i] = rb.wrapping_add(ca);
+            at[3][i] = rb.wrapping_add(cb);
         }
-        // the gather: four texels a lane, decoded
-        let mut t = [[[0.0f32; LANES]; 3]; 4];
-        let lut = self.lut;
-        if UNIFORM {
-            // one texel position for all lanes at a time: a vector gather of
-            // the RGBA8 words, then one of the table per channel
-            let texels: &[u32] = bytemuck::cast_slice(one.texels);
-            let last = texels.len().saturating_sub(1);
-            for k in 0..4 {
-                let (r, c) = match k {
-                    0 => (&ra, &ca),
-                    1 => (&ra, &cb),
-                    2 => (&rb, &ca),
-                    _ => (&rb, &cb),
-                };
-                let mut px = [0u32; LANES];
-                for i in 0..LANES {
-                    px[i] = texels[((r[i] + c[i]) as usize).min(last)];
-                }
-                for i in 0..LANES {
-                    t[k][0][i] = lut[(px[i] & 0xff) as usize];
-                    t[k][1][i] = lut[((px[i] >> 8) & 0xff) as usize];
-                    t[k][2][i] = lut[((px[i] >> 16) & 0xff) as usize];
-                }
-            }
-        } else {
-            for i in 0..LANES {
-                let l = &self.levels[lvl[i] as usize];
-                let last = l.texels.len() - 1;
-                let at = [ra[i] + ca[i], ra[i] + cb[i], rb[i] + ca[i], rb[i] + cb[i]];
-                for k in 0..4 {
-                    let texel = l.texels[(at[k] as usize).min(last)];
-                    for c in 0..3 {
-                        t[k][c][i] = lut[texel[c] as usize];
-                    }
-                }
-            }
-        }
-        for c in 0..3 {
-            for i in 0..LANES {
-                let top = t[0][c][i] + (t[1][c][i] - t[0][c][i]) * alpha[i];
-                let bottom = t[2][c][i] + (t[3][c][i] - t[2][c][i]) * alpha[i];
-                out[c][i] = top + (bottom - top) * beta[i];
-            }
-        }
+        Taps { at, alpha, beta }
     }
+
+    /// Lane `i`'s four texels of `taps` in `texels` (indices clamped to
+    /// `last`), decoded and blended: top row by α, bottom row by α, then
+    /// the rows by β.
+    #[inline(always)]
+    fn read(&self, texels: &[u32], last: usize, taps: &Taps, i: usize) -> [f32; 3] {
+        let p0 = texels[(taps.at[0][i] as usize).min(last)];
+        let p1 = texels[(taps.at[1][i] as usize).min(last)];
+        let p2 = texels[(taps.at[2][i] as usize).min(last)];
+        let p3 = texels[(taps.at[3][i] as usize).min(last)];
+        let (alpha, beta) = (taps.alpha[i], taps.beta[i]);
+        let lut = self.lut;
+        let mut o = [0.0; 3];
+        for c in 0..3 {
+            let s = 8 * c as u32;
+            let t = |p: u32| lut[((p >> s) & 0xff) as usize];
+            let top = t(p0) + (t(p1) - t(p0)) * alpha;
+            let bottom = t(p2) + (t(p3) - t(p2)) * alpha;
+            o[c] = top + (bottom - top) * beta;
+        }
+        o
+    }
+}
+
+/// A level's bilinear footprint per lane: the four texel offsets (top left,
+/// top right, bottom left, bottom right) and the blend weights.
+struct Taps {
+    at: [[u32; LANES]; 4],
+    alpha: Lanes,
+    beta: Lanes,
 }
 
 #[cfg(test)]

@@ -227,21 +227,21 @@ pub(crate) use lanes;
 
 /// The sRGB codes of 16 lanes of linear RGB (alpha 255), channel by channel
 /// over the lanes, so that each channel's table reads run as one lane loop
-/// rather than three scalar lookups per pixel. Measured per program: the
-/// terrain rows gain (0.91–0.94× the trilinear frame at AVX-512); the
-/// textured program at AVX2 lost (its table gathers at 8 lanes cost more
-/// than scalar reads), so the block programs keep their per-lane encoding.
+/// rather than three scalar lookups per pixel, and the four bytes of a pixel
+/// are put together as one 32-bit word per lane (shifts and ors on whole
+/// registers, not byte inserts).
 #[inline(always)]
 pub fn encode_rgb(enc: &hitex_core::texture::SrgbEncoder, c: &[Lanes; 3]) -> [[u8; 4]; LANES] {
-    let mut codes = [[0u8; LANES]; 3];
+    let mut word = [0xff00_0000u32; LANES];
     for ch in 0..3 {
         for i in 0..LANES {
-            codes[ch][i] = enc.encode(c[ch][i]);
+            word[i] |= (enc.encode(c[ch][i]) as u32) << (8 * ch);
         }
     }
+    // little-endian byte order of the word: R, G, B, A
     let mut out = [[0u8; 4]; LANES];
     for i in 0..LANES {
-        out[i] = [codes[0][i], codes[1][i], codes[2][i], 255];
+        out[i] = word[i].to_le_bytes();
     }
     out
 }
@@ -383,6 +383,13 @@ pub fn exp2(y: f32) -> f32 {
 #[inline(always)]
 pub fn pow(x: f32, y: f32) -> f32 {
     exp2(y * log2(x))
+}
+
+/// `t as u32` that vectorises: `hitex_core::texture::sampler::to_u32_clamped`
+/// (NaN and negatives 0, fractions cut).
+#[inline(always)]
+pub fn whole_u32(t: f32) -> u32 {
+    hitex_core::texture::sampler::to_u32_clamped(t)
 }
 
 /// `floor`, branch-free, for lane loops (no library call at any level).

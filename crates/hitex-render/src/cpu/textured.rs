@@ -260,11 +260,10 @@ impl BlockShader<VARYINGS> for TexturedProgram<'_> {
                         c[k][i] = albedo[k][i] * diffuse[k][i] + spec[k][i];
                     }
                 }
-                let enc = hitex_core::texture::srgb_encoder();
-                let e = |x: f32| enc.encode(x);
+                let codes = simd::encode_rgb(hitex_core::texture::srgb_encoder(), &c);
                 for i in 0..LANES {
                     if live & (1 << i) != 0 {
-                        rgba[i] = [e(c[0][i]), e(c[1][i]), e(c[2][i]), 255];
+                        rgba[i] = codes[i];
                     }
                 }
             }
