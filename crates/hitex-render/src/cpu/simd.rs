@@ -367,7 +367,9 @@ pub fn exp2(y: f32) -> f32 {
         + f * (1.0
             + f * (1.0 / 2.0
                 + f * (1.0 / 6.0 + f * (1.0 / 24.0 + f * (1.0 / 120.0 + f * (1.0 / 720.0 + f * (1.0 / 5040.0)))))));
-    let r = p * f32::from_bits(((i as i32 + 127) as u32) << 23);
+    // 2^i from its exponent bits (i + 127 is a whole float in [1, 254]: the
+    // clamped conversion is exact and vectorises, `as i32` would not)
+    let r = p * f32::from_bits(whole_u32(i + 127.0) << 23);
     if y < -126.0 {
         0.0
     } else if y >= 128.0 {
