@@ -353,10 +353,10 @@ fn run(cli: Cli) -> Result<(), CliError> {
                 simd.width(),
                 levels.join(", ")
             );
-            let textured = hitex_render::cpu::simd::level_at_most(hitex_render::cpu::textured::WIDEST);
+            let textured = hitex_render::cpu::simd::level_for_gathers();
             if textured != simd {
                 say!(
-                    "  the textured program runs at {textured}: its gathers measured faster at 8 lanes than at 16 (HITEX_SIMD={simd} runs it at {simd})"
+                    "  the textured program runs at {textured}: this processor splits 512-bit operations in two, and its gathers measured faster at 8 lanes than at 16 (HITEX_SIMD={simd} runs it at {simd})"
                 );
             }
             say_part!("{}", hitex_render::adapters_report());

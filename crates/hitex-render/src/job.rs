@@ -80,12 +80,12 @@ impl Job<'_> {
     }
 
     /// The SIMD level the CPU backend runs this job's fragment program at:
-    /// the process's level ([`crate::cpu::simd::level`]), capped by the
-    /// program's widest when the level was detected, not asked for.
+    /// the process's level ([`crate::cpu::simd::level`]), or for the
+    /// gather-bound textured program [`crate::cpu::simd::level_for_gathers`].
     pub fn cpu_simd_level(&self) -> crate::cpu::simd::SimdLevel {
-        use crate::cpu::simd::{level, level_at_most};
+        use crate::cpu::simd::{level, level_for_gathers};
         match self {
-            Job::Scene { .. } => level_at_most(crate::cpu::textured::WIDEST),
+            Job::Scene { .. } => level_for_gathers(),
             _ => level(),
         }
     }

@@ -98,12 +98,11 @@ pub trait BlockShader<const K: usize>: Sync {
     /// True when the program computes its own depth (WGSL
     /// `@builtin(frag_depth)`): the depth test then runs after shading.
     const WRITES_DEPTH: bool = false;
-    /// The widest SIMD level the program is run at when the level is
-    /// detected rather than asked for (see [`simd::level_at_most`]): a
-    /// program whose lanes are mostly gathers and per-lane table reads can
-    /// run faster at 8 lanes than at 16, where moving each lane in and out of
-    /// a 512-bit register costs more.
-    const WIDEST: simd::SimdLevel = simd::SimdLevel::Avx512;
+    /// True for a program whose lanes are mostly gathers and per-lane table
+    /// reads: it runs at [`simd::level_for_gathers`] (8 lanes on processors
+    /// that split 512-bit operations in two, where moving each lane in and
+    /// out of a 512-bit register costs more), the others at [`simd::level`].
+    const GATHER_BOUND: bool = false;
     /// Writes the colour of every live lane into `rgba` and, for programs
     /// that write depth, each lane's depth in [0, 1] into `depth` (anything
     /// else, NaN included, discards the lane).
@@ -397,7 +396,7 @@ pub fn rasterize_early<const K: usize, S: BlockShader<K>>(
             let y_band = b as u32 * BAND;
             let rows = (color.len() / w) as u32;
             simd::run_at(
-                simd::level_at_most(S::WIDEST),
+                if S::GATHER_BOUND { simd::level_for_gathers() } else { simd::level() },
                 BandOp { tris: &tris, bin: &bins[b], shader, color, depth, width, y_band, rows, occ },
             );
         },

@@ -156,12 +156,37 @@ pub fn level() -> SimdLevel {
     l
 }
 
-/// The level a program that runs fastest at no more than `widest` takes:
-/// [`level`] when it was asked for (`HITEX_SIMD`, [`set_level`]: every
-/// level stays measurable), else the detected level capped at `widest`.
-pub fn level_at_most(widest: SimdLevel) -> SimdLevel {
+/// True where the processor executes a 512-bit vector operation as two
+/// 256-bit halves (AMD Zen 4, family 19h). There a program whose lanes are
+/// mostly gathers and per-lane reads runs faster at 8 lanes than at 16;
+/// where the 512-bit units are whole (Intel's AVX-512 processors, Zen 5) it
+/// runs faster at 16.
+pub fn splits_512() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::__cpuid;
+        let v = __cpuid(0);
+        let amd = (v.ebx, v.edx, v.ecx) == (0x6874_7541, 0x6974_6e65, 0x444d_4163); // "AuthenticAMD"
+        let eax = __cpuid(1).eax;
+        let base = (eax >> 8) & 0xf;
+        let family = if base == 0xf { base + ((eax >> 20) & 0xff) } else { base };
+        amd && family == 0x19
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    false
+}
+
+/// The level a program whose lanes are mostly gathers and per-lane reads
+/// runs at: [`level`] when it was asked for (`HITEX_SIMD`, [`set_level`]:
+/// every level stays measurable) or when the processor runs 512-bit
+/// operations whole, else at most AVX2 ([`splits_512`]).
+pub fn level_for_gathers() -> SimdLevel {
     let l = level();
-    if FORCED.load(Ordering::Relaxed) || l.width() <= widest.width() { l } else { widest }
+    if FORCED.load(Ordering::Relaxed) || l.width() <= SimdLevel::Avx2.width() || !splits_512() {
+        l
+    } else {
+        SimdLevel::Avx2
+    }
 }
 
 /// Makes the CPU backend run at `l` from now on (process-wide).

@@ -118,15 +118,11 @@ fn raw(c: Vec3) -> [u8; 4] {
     [e(c.x), e(c.y), e(c.z), 255]
 }
 
-/// The widest SIMD level the textured program runs at unless a level is
-/// asked for. Measured on this project's machine (AMD Zen 4, `hitex bench
-/// texture --simd all` and back-to-back runs): the texel and decode-table
-/// gathers and the per-lane reads of a level run faster at 8 lanes than at
-/// 16 (the frame 0.67-0.90x the time, trilinear 0.82-0.84x, 3 pairs).
-pub const WIDEST: super::simd::SimdLevel = super::simd::SimdLevel::Avx2;
-
 impl BlockShader<VARYINGS> for TexturedProgram<'_> {
-    const WIDEST: super::simd::SimdLevel = WIDEST;
+    // texel and decode-table gathers, per-lane reads: on AMD Zen 4 the
+    // frame took 0.67-0.90x the time at 8 lanes (trilinear 0.82-0.84x, 3
+    // pairs); on Intel Xeon (Emerald Rapids) 0.86-0.92x at 16
+    const GATHER_BOUND: bool = true;
     #[inline(always)]
     fn shade_block(&self, b: &Block<VARYINGS>, rgba: &mut [[u8; 4]; LANES], _depth: &mut Lanes) {
         let (m, opts, tex, sampler) = &self.materials[b.material];
