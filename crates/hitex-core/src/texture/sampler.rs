@@ -167,6 +167,18 @@ pub fn to_u32_clamped(t: f32) -> u32 {
     unsafe { c.to_int_unchecked::<i32>() as u32 }
 }
 
+/// `t as i32` for lane loops, as [`to_u32_clamped`]: NaN gives 0, values
+/// below −2³¹ give −2³¹, values from 2³¹ on 2³¹ − 128 (where `as` gives
+/// 2³¹ − 1), whole values in between themselves (fractions cut toward zero).
+#[inline(always)]
+pub fn to_i32_clamped(t: f32) -> i32 {
+    #[allow(clippy::manual_clamp)] // clamp would keep NaN
+    let c = t.max(-2_147_483_648.0).min(2_147_483_520.0);
+    let c = if t.is_nan() { 0.0 } else { c };
+    // SAFETY: c is finite and in [−2³¹, 2³¹ − 128], inside i32's range
+    unsafe { c.to_int_unchecked::<i32>() }
+}
+
 /// `floor`, inlined where the platform's `floorf` is a library call, in
 /// float operations only (no conversion to an integer, which vector code
 /// pays for in range fixups): adding and subtracting 2²³ rounds |t| to an
@@ -246,6 +258,34 @@ mod tests {
             (4e9, 2_147_483_520),
         ] {
             assert_eq!(to_u32_clamped(t), want, "{t}");
+        }
+    }
+
+    #[test]
+    fn signed_clamped_conversion_matches_as_in_range_and_clamps_outside() {
+        for t in
+            [0.0f32, -0.0, 0.3, -0.3, 1.99, -1.99, -255.0, 4095.5, -16_777_216.0, 2_147_483_520.0, -2_147_483_648.0]
+        {
+            assert_eq!(to_i32_clamped(t), t as i32, "{t}");
+        }
+        for (t, want) in [
+            (f32::NAN, 0),
+            (-1e30f32, i32::MIN),
+            (f32::NEG_INFINITY, i32::MIN),
+            (f32::INFINITY, 2_147_483_520),
+            (4e9, 2_147_483_520),
+        ] {
+            assert_eq!(to_i32_clamped(t), want, "{t}");
+        }
+        let mut x = 0x2545_f491_u32;
+        for _ in 0..100_000 {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            let t = f32::from_bits(x);
+            if t.is_finite() && t.abs() < 2_147_483_520.0 {
+                assert_eq!(to_i32_clamped(t), t as i32, "{t}");
+            }
         }
     }
 

@@ -22,7 +22,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::raster::{Block, BlockShader};
-use super::simd::{LANES, Lanes, V3, ddx, ddy, floor, lanes};
+use super::simd::{LANES, Lanes, V3, ddx, ddy, floor, lanes, whole_u32};
 use crate::btf::{BtfFrame, BtfVertex, MAX_RENDER_THETA, PreparedBtf};
 use glam::Vec3;
 use hitex_core::btf::frames::acos;
@@ -282,7 +282,7 @@ impl<'a> BtfProgram<'a> {
                 let c = ax.coord[i];
                 let fl = floor(c);
                 f[i] = c - fl;
-                let k = (fl.max(0.0) as u32).min(extent - 1);
+                let k = whole_u32(fl).min(extent - 1);
                 i0[i] = k;
                 // k < extent: wrapping is one comparison, not a division
                 i1[i] = if k + 1 < extent {
@@ -477,7 +477,7 @@ fn index_taps_lanes(t: &Lanes, size: u32) -> ([u32; LANES], [u32; LANES], Lanes)
         let mut r = f0 - n * floor(f0 / n);
         r = if r < 0.0 { r + n } else { r };
         r = if r >= n { r - n } else { r };
-        let k = (r as u32).min(size - 1);
+        let k = whole_u32(r).min(size - 1);
         i0[i] = k;
         i1[i] = if k + 1 < size { k + 1 } else { 0 };
         f[i] = x - f0;
@@ -654,7 +654,7 @@ fn lerp_phi(g: &AngularGrid, phi: &Lanes) -> LaneLerp {
         if x >= n {
             x = 0.0;
         }
-        let i0 = (floor(x) as u32).min(count - 1);
+        let i0 = whole_u32(floor(x)).min(count - 1);
         o.i0[i] = i0;
         o.i1[i] = if i0 + 1 == count { 0 } else { i0 + 1 };
         o.t[i] = (x - i0 as f32).clamp(0.0, 1.0);

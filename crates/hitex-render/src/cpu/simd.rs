@@ -419,6 +419,13 @@ pub fn whole_u32(t: f32) -> u32 {
     hitex_core::texture::sampler::to_u32_clamped(t)
 }
 
+/// `t as i32` that vectorises: `hitex_core::texture::sampler::to_i32_clamped`
+/// (NaN 0, fractions cut toward zero, the same as `as` inside ±2³¹).
+#[inline(always)]
+pub fn whole_i32(t: f32) -> i32 {
+    hitex_core::texture::sampler::to_i32_clamped(t)
+}
+
 /// `floor`, branch-free, for lane loops (no library call at any level).
 #[inline(always)]
 pub fn floor(t: f32) -> f32 {

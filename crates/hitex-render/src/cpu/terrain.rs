@@ -26,7 +26,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::raster::{Block, BlockShader, Target, rasterize};
-use super::simd::{LANES, Lanes, ddx, ddy};
+use super::simd::{LANES, Lanes, ddx, ddy, whole_i32, whole_u32};
 use crate::terrain::{FlyGround, FlyMesh, FlyPages, FlySampler, FlyUniform, GROUND, GenericTexture, MAP, sky};
 use crate::{Frame, RenderError, check_size};
 use glam::{Mat4, Vec3};
@@ -234,8 +234,8 @@ impl Program<'_> {
             let (x0, y0) = (floor(x), floor(y));
             fx[i] = x - x0;
             fy[i] = y - y0;
-            ix[i] = x0 as i32;
-            iy[i] = y0 as i32;
+            ix[i] = whole_i32(x0);
+            iy[i] = whole_i32(y0);
         }
         let mut c = [[0.0f32; LANES]; 4];
         // neighbouring lanes almost always read one map: its page-table
@@ -394,8 +394,8 @@ impl Program<'_> {
             let (a, c) = (floor(qx[i]), floor(qy[i]));
             tx[i] = qx[i] - a;
             ty[i] = qy[i] - c;
-            fx[i] = if wanted >> i & 1 == 1 { a as i32 } else { 0 };
-            fy[i] = if wanted >> i & 1 == 1 { c as i32 } else { 0 };
+            fx[i] = if wanted >> i & 1 == 1 { whole_i32(a) } else { 0 };
+            fy[i] = if wanted >> i & 1 == 1 { whole_i32(c) } else { 0 };
         }
         // each span's block origin from its points (bicubic taps stay inside it)
         let mut origin = [[0i32; 2]; 4];
@@ -502,7 +502,7 @@ impl Program<'_> {
             // a lane without ground reads level 0's first texel, dropped below
             let zf = if ok >> i & 1 == 1 { zf } else { 0.0 };
             let f = floor(zf);
-            z0[i] = f as u32;
+            z0[i] = whole_u32(f);
             z1[i] = (z0[i] + 1).min(levels - 1);
             t[i] = zf - f;
         }
@@ -913,7 +913,7 @@ impl MeshProgram<'_> {
             let foot = dxx[i].abs().max(dxy[i].abs()).max(dyx[i].abs()).max(dyy[i].abs());
             let zf = (top - super::simd::log2(foot.max(1e-9))).clamp(0.0, top);
             let f = floor(zf);
-            z0[i] = f as u32;
+            z0[i] = whole_u32(f);
             z1[i] = (z0[i] + 1).min(levels - 1);
             t[i] = zf - f;
         }
