@@ -332,6 +332,9 @@ pub fn run_case_fns(
 
 /// Prints a report as a table.
 pub fn print_table(r: &Report) {
+    if r.rows.iter().any(|x| x.backend == "cpu") {
+        say!("processor: {}", hitex_render::cpu::simd::processor());
+    }
     say!(
         "{:<22} {:<4} {:<44} {:>10} {:>8} {:>8} {:>8} {:>7}",
         "case",

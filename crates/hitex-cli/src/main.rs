@@ -344,6 +344,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         )),
         Command::Info => {
             say!("hitex {}", env!("CARGO_PKG_VERSION"));
+            say!("processor: {}", hitex_render::cpu::simd::processor());
             let simd = hitex_render::cpu::simd::level();
             let levels: Vec<&str> =
                 hitex_render::cpu::simd::SimdLevel::available_levels().iter().map(|l| l.name()).collect();

@@ -697,14 +697,21 @@ impl NurbsProgram<'_> {
             return None;
         }
         // one patch for every live lane
+        // (float operations only, which run as vector code; equal to the
+        // per-lane program's `(round().max(0) as usize).min(last)`: patch
+        // numbers are whole floats far below 2²⁴, NaN gives patch 0 in both)
         let first = b.live.trailing_zeros() as usize;
-        let last = t.patches.saturating_sub(1) as usize;
-        let patch = (b.v[5][first].round().max(0.0) as usize).min(last);
+        let last = t.patches.saturating_sub(1) as f32;
+        let of = |x: f32| x.round().max(0.0).min(last);
+        let pf = of(b.v[5][first]);
+        let mut other = 0u16;
         for lane in 0..LANES {
-            if b.live & (1 << lane) != 0 && (b.v[5][lane].round().max(0.0) as usize).min(last) != patch {
-                return None;
-            }
+            other |= ((of(b.v[5][lane]) != pf) as u16) << lane;
         }
+        if other & b.live != 0 {
+            return None;
+        }
+        let patch = pf as usize;
         let (kw, cw) = (t.knot_width as usize, t.cp_width as usize);
         let head = t.control[patch * cw];
         let (p, q, nu, nv) = (head[0] as usize, head[1] as usize, head[2] as usize, head[3] as usize);

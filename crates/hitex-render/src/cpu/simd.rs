@@ -156,6 +156,35 @@ pub fn level() -> SimdLevel {
     l
 }
 
+/// The processor's brand string with its x86 family and model (CPUID), e.g.
+/// "Intel(R) Xeon(R) Processor (family 6, model 207)": the CPU backend's
+/// timings and the SIMD level that suits a program depend on it.
+pub fn processor() -> String {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::__cpuid;
+        let mut bytes = Vec::with_capacity(48);
+        if __cpuid(0x8000_0000).eax >= 0x8000_0004 {
+            for leaf in 0x8000_0002u32..=0x8000_0004 {
+                let r = __cpuid(leaf);
+                for w in [r.eax, r.ebx, r.ecx, r.edx] {
+                    bytes.extend_from_slice(&w.to_le_bytes());
+                }
+            }
+        }
+        let brand = String::from_utf8_lossy(&bytes).trim_matches(char::from(0)).trim().to_string();
+        let eax = __cpuid(1).eax;
+        let base = (eax >> 8) & 0xf;
+        let family = if base == 0xf { base + ((eax >> 20) & 0xff) } else { base };
+        let model =
+            if base == 0x6 || base == 0xf { ((eax >> 4) & 0xf) | ((eax >> 12) & 0xf0) } else { (eax >> 4) & 0xf };
+        let brand = if brand.is_empty() { "x86-64 processor".to_string() } else { brand };
+        format!("{brand} (family {family}, model {model})")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    std::env::consts::ARCH.to_string()
+}
+
 /// True where the processor executes a 512-bit vector operation as two
 /// 256-bit halves (AMD Zen 4, family 19h). There a program whose lanes are
 /// mostly gathers and per-lane reads runs faster at 8 lanes than at 16;
