@@ -112,11 +112,11 @@ fn deriv(dir: i32, pid: i32, deg: i32, lower: array<f32, 16>, first: i32) -> arr
         var v = 0.0;
         if r >= 1 {
             let den = knot(dir, pid, i + deg) - knot(dir, pid, i);
-            if den > 0.0 { v = v + lo[r - 1] / den; }
+            if den > 0.0 { v = v + lo[r - 1] * (1.0 / den); }
         }
         if r < deg {
             let den = knot(dir, pid, i + deg + 1) - knot(dir, pid, i + 1);
-            if den > 0.0 { v = v - lo[r] / den; }
+            if den > 0.0 { v = v - lo[r] * (1.0 / den); }
         }
         d[r] = fdeg * v;
     }
@@ -138,7 +138,7 @@ fn basis(dir: i32, pid: i32, span: i32, u: f32, p: i32, second: bool) -> Basis {
         right[j] = knot(dir, pid, span + j) - u;
         var saved = 0.0;
         for (var r = 0; r < j; r = r + 1) {
-            let temp = n[r] / (right[r + 1] + left[j - r]);
+            let temp = n[r] * (1.0 / (knot(dir, pid, span + r + 1) - knot(dir, pid, span + 1 + r - j)));
             n[r] = saved + right[r + 1] * temp;
             saved = left[j - r] * temp;
         }
@@ -174,11 +174,11 @@ fn deriv3(dir: i32, pid: i32, deg: i32, lower: array<f32, 4>, first: i32) -> arr
         var v = 0.0;
         if r >= 1 {
             let den = knot(dir, pid, i + deg) - knot(dir, pid, i);
-            if den > 0.0 { v = v + lo[r - 1] / den; }
+            if den > 0.0 { v = v + lo[r - 1] * (1.0 / den); }
         }
         if r < deg {
             let den = knot(dir, pid, i + deg + 1) - knot(dir, pid, i + 1);
-            if den > 0.0 { v = v - lo[r] / den; }
+            if den > 0.0 { v = v - lo[r] * (1.0 / den); }
         }
         d[r] = fdeg * v;
     }
@@ -197,7 +197,7 @@ fn basis3(dir: i32, pid: i32, span: i32, u: f32, second: bool) -> Basis3 {
         right[j] = knot(dir, pid, span + j) - u;
         var saved = 0.0;
         for (var r = 0; r < j; r = r + 1) {
-            let temp = n[r] / (right[r + 1] + left[j - r]);
+            let temp = n[r] * (1.0 / (knot(dir, pid, span + r + 1) - knot(dir, pid, span + 1 + r - j)));
             n[r] = saved + right[r + 1] * temp;
             saved = left[j - r] * temp;
         }
@@ -225,11 +225,11 @@ fn deriv5(dir: i32, pid: i32, deg: i32, lower: array<f32, 6>, first: i32) -> arr
         var v = 0.0;
         if r >= 1 {
             let den = knot(dir, pid, i + deg) - knot(dir, pid, i);
-            if den > 0.0 { v = v + lo[r - 1] / den; }
+            if den > 0.0 { v = v + lo[r - 1] * (1.0 / den); }
         }
         if r < deg {
             let den = knot(dir, pid, i + deg + 1) - knot(dir, pid, i + 1);
-            if den > 0.0 { v = v - lo[r] / den; }
+            if den > 0.0 { v = v - lo[r] * (1.0 / den); }
         }
         d[r] = fdeg * v;
     }
@@ -248,7 +248,7 @@ fn basis5(dir: i32, pid: i32, span: i32, u: f32, second: bool) -> Basis {
         right[j] = knot(dir, pid, span + j) - u;
         var saved = 0.0;
         for (var r = 0; r < j; r = r + 1) {
-            let temp = n[r] / (right[r + 1] + left[j - r]);
+            let temp = n[r] * (1.0 / (knot(dir, pid, span + r + 1) - knot(dir, pid, span + 1 + r - j)));
             n[r] = saved + right[r + 1] * temp;
             saved = left[j - r] * temp;
         }

@@ -167,8 +167,10 @@ mod tests {
 /// them (seed 004, eq. (6)): the triangular scheme of A2.2 keeps the rows of
 /// degree p − 2 and p − 1, and the derivatives follow from
 /// `N'_{i,p} = p (N_{i,p−1}/(u_{i+p} − u_i) − N_{i+1,p−1}/(u_{i+p+1} − u_{i+1}))`,
-/// applied twice for `N''`. Same values as [`ders_basis_funs`]; this is the
-/// form `nurbs.wgsl` mirrors. Returns `(N, N', N'')` for r = 0..=p; `N''`
+/// applied twice for `N''`. Every division is by a knot difference, taken
+/// as a multiplication by its reciprocal (a function of the span alone,
+/// which block programs compute once for many parameters). Same values as
+/// [`ders_basis_funs`] to rounding; this is the form `nurbs.wgsl` mirrors. Returns `(N, N', N'')` for r = 0..=p; `N''`
 /// only when `second` is set (zeros otherwise).
 pub fn basis_ders_paper<T: Real>(span: usize, u: T, p: usize, knots: &[T], second: bool) -> [[T; W]; 3] {
     triangle::<T, W>(span, u, p, knots, second)
@@ -196,7 +198,11 @@ fn triangle<T: Real, const N: usize>(span: usize, u: T, p: usize, knots: &[T], s
         right[j] = knots[span + j] - u;
         let mut saved = T::ZERO;
         for r in 0..j {
-            let temp = n[r] / (right[r + 1] + left[j - r]);
+            // right[r + 1] + left[j − r] is the knot difference
+            // u_{span+r+1} − u_{span+1+r−j} (eq. 5's denominator, which u
+            // cancels from): its reciprocal depends on the span alone, so a
+            // program evaluating many parameters of one span computes it once
+            let temp = n[r] * (T::ONE / (knots[span + r + 1] - knots[span + 1 + r - j]));
             n[r] = saved + right[r + 1] * temp;
             saved = left[j - r] * temp;
         }
@@ -219,13 +225,13 @@ fn triangle<T: Real, const N: usize>(span: usize, u: T, p: usize, knots: &[T], s
             if r >= 1 {
                 let den = knots[i + deg] - knots[i];
                 if den > T::ZERO {
-                    v += lower[r - 1] / den;
+                    v += lower[r - 1] * (T::ONE / den);
                 }
             }
             if r < deg {
                 let den = knots[i + deg + 1] - knots[i + 1];
                 if den > T::ZERO {
-                    v -= lower[r] / den;
+                    v -= lower[r] * (T::ONE / den);
                 }
             }
             d[r] = fdeg * v;

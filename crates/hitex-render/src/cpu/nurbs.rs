@@ -1017,36 +1017,38 @@ fn span_groups(ku: &[f32], kv: &[f32], nu: usize, nv: usize, u: &Lanes, v: &Lane
     if lanes == 0 {
         return None;
     }
-    // the common case first: every lane in the first lane's pair (one
-    // comparison per lane and knot, no search)
-    let first = lanes.trailing_zeros() as usize;
-    let (su, sv) = (find_span(nu - 1, 3, u[first], ku), find_span(nv - 1, 3, v[first], kv));
-    let (a, b, ue) = (ku[su], ku[su + 1], su == u_end);
-    let (c, d, ve) = (kv[sv], kv[sv + 1], sv == v_end);
-    let mut shared = 0u16;
-    for lane in 0..LANES {
-        let (x, y) = (u[lane], v[lane]);
-        let inu = (a <= x && x < b) | (ue & (x >= u1));
-        let inv = (c <= y && y < d) | (ve & (y >= v1));
-        shared |= ((inu & inv) as u16) << lane;
-    }
-    if shared & lanes == lanes {
-        groups.groups[0] = (su, sv, lanes);
-        groups.len = 1;
-        return Some(groups);
-    }
-    for lane in (0..LANES).filter(|l| lanes & (1 << l) != 0) {
-        let (x, y) = (u[lane], v[lane]);
-        let found = groups.groups[..groups.len]
-            .iter()
-            .position(|g| in_span(x, ku, g.0, u_end, u1) && in_span(y, kv, g.1, v_end, v1));
-        match found {
-            Some(i) => groups.groups[i].2 |= 1 << lane,
-            None => {
-                groups.groups[groups.len] = (find_span(nu - 1, 3, x, ku), find_span(nv - 1, 3, y, kv), 1 << lane);
-                groups.len += 1;
+    // every lane's span pair at once: the span is p plus the number of
+    // knots k[p+1..=n] at or below x (lane-parallel compares, no search);
+    // checked against the span's definition, so that a lane of unusual
+    // knots (end multiplicity above p + 1) takes `find_span` itself
+    let spans = |k: &[f32], n: usize, x: &Lanes, end_span: usize, end: f32| -> [usize; LANES] {
+        let mut s = [3u32; LANES];
+        for &knot in &k[4..n.max(4)] {
+            for lane in 0..LANES {
+                s[lane] += (knot <= x[lane]) as u32;
             }
         }
+        let mut out = [0usize; LANES];
+        for lane in 0..LANES {
+            let c = s[lane] as usize;
+            out[lane] = if in_span(x[lane], k, c, end_span, end) { c } else { find_span(n - 1, 3, x[lane], k) };
+        }
+        out
+    };
+    let (su, sv) = (spans(ku, nu, u, u_end, u1), spans(kv, nv, v, v_end, v1));
+    // the groups, each led by its first lane
+    let mut rest = lanes;
+    while rest != 0 {
+        let first = rest.trailing_zeros() as usize;
+        let (a, b) = (su[first], sv[first]);
+        let mut same = 0u16;
+        for lane in 0..LANES {
+            same |= ((su[lane] == a && sv[lane] == b) as u16) << lane;
+        }
+        let members = same & rest;
+        groups.groups[groups.len] = (a, b, members);
+        groups.len += 1;
+        rest &= !members;
     }
     (groups.len > 0).then_some(groups)
 }
@@ -1170,7 +1172,8 @@ impl BicubicOp<'_> {
             right[j] = r.sub(r.k(k[span + j]), u);
             let mut saved = zero;
             for q in 0..j {
-                let temp = r.div(n[q], r.add(right[q + 1], left[j - q]));
+                // the reciprocal knot difference, one scalar for every lane
+                let temp = r.mul(n[q], r.k(1.0 / (k[span + q + 1] - k[span + 1 + q - j])));
                 n[q] = r.add(saved, r.mul(right[q + 1], temp));
                 saved = r.mul(left[j - q], temp);
             }
@@ -1188,13 +1191,13 @@ impl BicubicOp<'_> {
             if q >= 1 {
                 let den = k[i + 3] - k[i];
                 if den > 0.0 {
-                    v = r.add(v, r.div(row_p1[q - 1], r.k(den)));
+                    v = r.add(v, r.mul(row_p1[q - 1], r.k(1.0 / den)));
                 }
             }
             if q < 3 {
                 let den = k[i + 4] - k[i + 1];
                 if den > 0.0 {
-                    v = r.sub(v, r.div(row_p1[q], r.k(den)));
+                    v = r.sub(v, r.mul(row_p1[q], r.k(1.0 / den)));
                 }
             }
             d[q] = r.mul(r.k(3.0), v);
