@@ -770,10 +770,8 @@ impl NurbsProgram<'_> {
         // degenerate normals and solo lanes take the per-lane program
         let mut degenerate = solo;
         for lane in 0..LANES {
-            let ok = o.len[lane] > 1e-6 * o.scale[lane] * o.scale[lane] && o.finite[lane] != 0.0;
-            if !ok {
-                degenerate |= 1 << lane;
-            }
+            let ok = (o.len[lane] > 1e-6 * o.scale[lane] * o.scale[lane]) & (o.finite[lane] != 0.0);
+            degenerate |= (!ok as u16) << lane;
         }
         let raw = |c: Vec3| {
             let q = |x: f32| (if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) } * 255.0 + 0.5) as u8;
@@ -817,6 +815,13 @@ impl NurbsProgram<'_> {
         // lanes cut away (past the domain or trimmed, beyond the seam reach)
         // are discarded; seam lanes and degenerate normals take the per-lane path
         let trimmed = t.trims[patch * t.trim_width as usize][0] as usize != 0;
+        // lanes past the domain or on a boundary fan, all 16 at once
+        let mut outside = 0u16;
+        for lane in 0..LANES {
+            let (x, y) = (b.v[3][lane], b.v[4][lane]);
+            let out = (x < u0) | (x > u1) | (y < v0) | (y > v1) | is_fan(b.v[5][lane]);
+            outside |= (out as u16) << lane;
+        }
         for quad in 0..4 {
             let base = 4 * quad;
             let mask = (b.live >> base) & 0xf;
@@ -825,9 +830,7 @@ impl NurbsProgram<'_> {
             }
             // only lanes past the domain, in trimmed patches or degenerate need fwidth
             let (bu, bv) = (&b.v[3][base..base + 4], &b.v[4][base..base + 4]);
-            let outside =
-                (0..4).any(|l| bu[l] < u0 || bu[l] > u1 || bv[l] < v0 || bv[l] > v1 || is_fan(b.v[5][base + l]));
-            if !(trimmed || outside || (degenerate >> base) & 0xf != 0) {
+            if !(trimmed || (outside >> base) & 0xf != 0 || (degenerate >> base) & 0xf != 0) {
                 continue;
             }
             let (fu, fv) = (fwidth_quad(b, 3, quad), fwidth_quad(b, 4, quad));
@@ -1007,50 +1010,56 @@ fn point_partials<S: pulp::Simd>(
 /// A lane is in span s when k[s] ≤ x < k[s+1], or at the domain's end when
 /// s is the last non-empty span: exactly `find_span`'s answer.
 #[allow(clippy::too_many_arguments)]
+#[inline(always)]
 fn span_groups(ku: &[f32], kv: &[f32], nu: usize, nv: usize, u: &Lanes, v: &Lanes, lanes: u16) -> Option<SpanGroups> {
-    let (u1, v1) = (ku[nu], kv[nv]);
-    let (u_end, v_end) = (find_span(nu - 1, 3, u1, ku), find_span(nv - 1, 3, v1, kv));
-    let in_span = |x: f32, k: &[f32], s: usize, end_span: usize, end: f32| {
-        (k[s] <= x && x < k[s + 1]) || (s == end_span && x >= end)
-    };
-    let mut groups = SpanGroups { groups: [(0, 0, 0); LANES], len: 0 };
     if lanes == 0 {
         return None;
     }
-    // every lane's span pair at once: the span is p plus the number of
-    // knots k[p+1..=n] at or below x (lane-parallel compares, no search);
-    // checked against the span's definition, so that a lane of unusual
-    // knots (end multiplicity above p + 1) takes `find_span` itself
-    let spans = |k: &[f32], n: usize, x: &Lanes, end_span: usize, end: f32| -> [usize; LANES] {
-        let mut s = [3u32; LANES];
-        for &knot in &k[4..n.max(4)] {
+    let (su, sv) = (lane_spans(ku, nu, u), lane_spans(kv, nv, v));
+    let id: [u32; LANES] = std::array::from_fn(|lane| su[lane] << 16 | sv[lane]);
+    // the groups, each led by its first lane
+    let mut groups = SpanGroups { groups: [(0, 0, 0); LANES], len: 0 };
+    let mut rest = lanes;
+    while rest != 0 {
+        let first = rest.trailing_zeros() as usize;
+        let key = id[first];
+        let mut same = 0u16;
+        for lane in 0..LANES {
+            same |= ((id[lane] == key) as u16) << lane;
+        }
+        let members = same & rest;
+        groups.groups[groups.len] = (su[first] as usize, sv[first] as usize, members);
+        groups.len += 1;
+        rest &= !members;
+    }
+    Some(groups)
+}
+
+/// The cubic knot span of every lane's parameter `x` (within the domain
+/// [k[3], k[n]], `n` control points), as `find_span` gives it. Where the
+/// knots rise (never fall) over the domain and both end spans are
+/// non-empty, as a valid clamped vector has them, the span is 3 plus the
+/// number of knots k[4..n] at or below x: those knots are a prefix, so the
+/// count lands on the one span with k[s] ≤ x < k[s+1], and at x = k[n] on
+/// the last span n − 1. Lane-parallel compares, no search; other knot
+/// vectors (and long ones) take `find_span` lane by lane.
+#[inline(always)]
+fn lane_spans(k: &[f32], n: usize, x: &Lanes) -> [u32; LANES] {
+    let inner = &k[4..n.max(4)];
+    let counted = inner.len() <= 32 && k[3] < k[4] && k[n - 1] < k[n] && k[3..=n].windows(2).all(|w| w[0] <= w[1]);
+    let mut s = [3u32; LANES];
+    if counted {
+        for &knot in inner {
             for lane in 0..LANES {
                 s[lane] += (knot <= x[lane]) as u32;
             }
         }
-        let mut out = [0usize; LANES];
+    } else {
         for lane in 0..LANES {
-            let c = s[lane] as usize;
-            out[lane] = if in_span(x[lane], k, c, end_span, end) { c } else { find_span(n - 1, 3, x[lane], k) };
+            s[lane] = find_span(n - 1, 3, x[lane], k) as u32;
         }
-        out
-    };
-    let (su, sv) = (spans(ku, nu, u, u_end, u1), spans(kv, nv, v, v_end, v1));
-    // the groups, each led by its first lane
-    let mut rest = lanes;
-    while rest != 0 {
-        let first = rest.trailing_zeros() as usize;
-        let (a, b) = (su[first], sv[first]);
-        let mut same = 0u16;
-        for lane in 0..LANES {
-            same |= ((su[lane] == a && sv[lane] == b) as u16) << lane;
-        }
-        let members = same & rest;
-        groups.groups[groups.len] = (a, b, members);
-        groups.len += 1;
-        rest &= !members;
     }
-    (groups.len > 0).then_some(groups)
+    s
 }
 
 /// The knot-span pairs of a block's lanes: `(su, sv, lanes)`.
@@ -1329,6 +1338,50 @@ impl BlockShader<VARYINGS> for NurbsProgram<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The lane-parallel span count equals `find_span` on clamped knot
+    /// vectors with interior multiplicities up to 4, on vectors whose end
+    /// spans are empty (start or end multiplicity 5) and on falling knots,
+    /// at random parameters, the knots themselves and both ends.
+    #[test]
+    fn lane_spans_equal_find_span() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for case in 0..2000 {
+            let inner = (rnd() * 12.0) as usize;
+            let mut interior: Vec<f32> = (0..inner).map(|_| (rnd() * 8.0).round() / 8.0).collect();
+            interior.sort_by(f32::total_cmp);
+            let mut k = vec![0.0f32; 4];
+            k.extend(interior.iter().filter(|&&x| x > 0.0 && x < 1.0));
+            k.extend([1.0f32; 4]);
+            match case % 4 {
+                1 => k.insert(0, 0.0),
+                2 => k.push(1.0),
+                3 if k.len() > 9 => k.swap(5, 6),
+                _ => {}
+            }
+            let n = k.len() - 4;
+            if n < 4 {
+                continue;
+            }
+            let (lo, hi) = (k[3], k[n]);
+            let x: Lanes = std::array::from_fn(|lane| match lane {
+                0 => lo,
+                1 => hi,
+                2..=5 => k[(3 + lane) % k.len()].max(lo).min(hi),
+                _ => lo + (hi - lo) * rnd(),
+            });
+            let s = lane_spans(&k, n, &x);
+            for lane in 0..LANES {
+                assert_eq!(s[lane] as usize, find_span(n - 1, 3, x[lane], &k), "knots {k:?} x {}", x[lane]);
+            }
+        }
+    }
 
     /// The studio by hand: a viewer looking along +X at a mirror whose
     /// normal leans back towards it by half the reflected ray's elevation.

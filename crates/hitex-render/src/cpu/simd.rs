@@ -173,16 +173,23 @@ pub fn processor() -> String {
             }
         }
         let brand = String::from_utf8_lossy(&bytes).trim_matches(char::from(0)).trim().to_string();
-        let eax = __cpuid(1).eax;
-        let base = (eax >> 8) & 0xf;
-        let family = if base == 0xf { base + ((eax >> 20) & 0xff) } else { base };
-        let model =
-            if base == 0x6 || base == 0xf { ((eax >> 4) & 0xf) | ((eax >> 12) & 0xf0) } else { (eax >> 4) & 0xf };
+        let (family, model) = family_model(__cpuid(1).eax);
         let brand = if brand.is_empty() { "x86-64 processor".to_string() } else { brand };
         format!("{brand} (family {family}, model {model})")
     }
     #[cfg(not(target_arch = "x86_64"))]
     std::env::consts::ARCH.to_string()
+}
+
+/// The display family and model of a CPUID leaf 1 signature (`eax`): the
+/// extended family is added to base family 0xf, and the extended model
+/// prefixes the model for families 6 and 0xf.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+fn family_model(eax: u32) -> (u32, u32) {
+    let base = (eax >> 8) & 0xf;
+    let family = if base == 0xf { base + ((eax >> 20) & 0xff) } else { base };
+    let model = if base == 0x6 || base == 0xf { ((eax >> 4) & 0xf) | ((eax >> 12) & 0xf0) } else { (eax >> 4) & 0xf };
+    (family, model)
 }
 
 /// True where the processor executes a 512-bit vector operation as two
@@ -196,10 +203,7 @@ pub fn splits_512() -> bool {
         use std::arch::x86_64::__cpuid;
         let v = __cpuid(0);
         let amd = (v.ebx, v.edx, v.ecx) == (0x6874_7541, 0x6974_6e65, 0x444d_4163); // "AuthenticAMD"
-        let eax = __cpuid(1).eax;
-        let base = (eax >> 8) & 0xf;
-        let family = if base == 0xf { base + ((eax >> 20) & 0xff) } else { base };
-        amd && family == 0x19
+        amd && family_model(__cpuid(1).eax).0 == 0x19
     }
     #[cfg(not(target_arch = "x86_64"))]
     false
@@ -555,6 +559,17 @@ mod tests {
                 assert!((got - want).abs() <= 1e-5 * want + 1e-12, "{x}^{s}: {got} vs {want}");
             }
         }
+    }
+
+    /// CPUID signatures of known processors: Intel Emerald Rapids (family
+    /// 6, model 0xCF = 207), AMD Zen 4 (base family 0xf + extended 0xA =
+    /// 0x19, model 0x11), and a family-5 part whose extended model bits
+    /// are not part of its model.
+    #[test]
+    fn family_and_model_decode_known_signatures() {
+        assert_eq!(family_model(0x000C_06F2), (6, 207));
+        assert_eq!(family_model(0x00A1_0F11), (0x19, 0x11));
+        assert_eq!(family_model(0x0001_0543), (5, 4));
     }
 
     #[test]
