@@ -199,7 +199,7 @@ fn triangle<T: Real, const N: usize>(span: usize, u: T, p: usize, knots: &[T], s
         let mut saved = T::ZERO;
         for r in 0..j {
             // right[r + 1] + left[j − r] is the knot difference
-            // u_{span+r+1} − u_{span+1+r−j} (eq. 5's denominator, which u
+            // u_{span+r+1} − u_{span+1+r−j} (eq. 2's denominator, which u
             // cancels from): its reciprocal depends on the span alone, so a
             // program evaluating many parameters of one span computes it once
             let temp = n[r] * (T::ONE / (knots[span + r + 1] - knots[span + 1 + r - j]));
