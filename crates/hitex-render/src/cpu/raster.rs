@@ -609,7 +609,13 @@ impl<const K: usize, S: BlockShader<K>> pulp::WithSimd for BandOp<'_, K, S> {
     #[inline(always)]
     fn with_simd<Sm: pulp::Simd>(self, simd: Sm) {
         let mut batch = Batch::<K>::new();
-        let mut out = Out { shader: self.shader, color: self.color, depth: self.depth };
+        // the farthest depth of each 8×2 cell of the band, for the
+        // conservative early test of whole blocks (programs that write depth)
+        let hiz = match self.occ {
+            Some(_) => Hiz::of(self.depth, self.width as usize),
+            None => Hiz { max: Vec::new(), cells_w: 0, width: self.width as usize },
+        };
+        let mut out = Out { shader: self.shader, color: self.color, depth: self.depth, hiz };
         let pack = self.shader.packs_triangles();
         for &(c, i) in self.bin {
             let t = &self.tris[c as usize][i as usize];
@@ -627,6 +633,72 @@ struct Out<'a, S> {
     shader: &'a S,
     color: &'a mut [[u8; 4]],
     depth: &'a mut [f32],
+    /// Cell maxima of `depth` (empty without the conservative early test).
+    hiz: Hiz,
+}
+
+/// A bound on the largest depth of each 8×2 pixel cell of a band (cells
+/// aligned to multiples of 8 columns and 2 rows): 1 (the far plane, which
+/// bounds every depth) until the program writes into the cell, then the
+/// maximum of the cell's depths, recomputed as they are written. A block
+/// whose nearest possible fragment lies more than the early test's margin
+/// behind the farthest depth of the cells under it cannot pass, and is
+/// skipped before any lane is interpolated.
+struct Hiz {
+    max: Vec<f32>,
+    cells_w: usize,
+    width: usize,
+}
+
+impl Hiz {
+    /// The cells of a band's depth buffer (`width` pixels a row), every
+    /// one bounded by the far plane.
+    fn of(depth: &[f32], width: usize) -> Self {
+        let cells_w = width.div_ceil(8);
+        let rows = depth.len() / width;
+        Self { max: vec![1.0; cells_w * rows.div_ceil(2)], cells_w, width }
+    }
+
+    /// Recomputes cell (`cx`, `cy`) from the depths under it (every depth
+    /// lies in [0, 1]: the clear value or a fragment's that passed).
+    #[inline(always)]
+    fn refresh(&mut self, depth: &[f32], cx: usize, cy: usize) {
+        let (x0, x1) = (8 * cx, (8 * cx + 8).min(self.width));
+        let rows = depth.len() / self.width;
+        if x1 - x0 == 8 && 2 * cy + 2 <= rows {
+            // a whole cell: two rows of eight, as vector maxima
+            let i = 2 * cy * self.width + x0;
+            let (a, b) = (&depth[i..i + 8], &depth[i + self.width..i + self.width + 8]);
+            let mut m = [0.0f32; 8];
+            for k in 0..8 {
+                m[k] = if a[k] > b[k] { a[k] } else { b[k] };
+            }
+            for h in [4, 2, 1] {
+                for k in 0..h {
+                    m[k] = if m[k] > m[k + h] { m[k] } else { m[k + h] };
+                }
+            }
+            self.max[cy * self.cells_w + cx] = m[0];
+            return;
+        }
+        let mut m = 0.0f32;
+        for y in 2 * cy..(2 * cy + 2).min(rows) {
+            for &d in &depth[y * self.width + x0..y * self.width + x1] {
+                m = m.max(d);
+            }
+        }
+        self.max[cy * self.cells_w + cx] = m;
+    }
+
+    /// The farthest depth under the 8×2 block at band column `x`, row `y` (even).
+    #[inline(always)]
+    fn block(&self, x: u32, y: u32) -> f32 {
+        let row = (y / 2) as usize * self.cells_w;
+        // the cells of the block's first and last columns
+        let last = x as usize + 7;
+        let (c0, c1) = ((x / 8) as usize, (last / 8).min(self.cells_w - 1));
+        self.max[row + c0].max(self.max[row + c1])
+    }
 }
 
 /// Quads waiting to be shaded together: up to four covered 2×2 quads, from
@@ -668,6 +740,7 @@ impl<const K: usize> Batch<K> {
         }
         let b = &self.block;
         out.shader.shade_block(b, &mut self.rgba, &mut self.zout);
+        let mut written = 0u8;
         for lane in 0..4 * self.quads {
             if b.live & (1 << lane) == 0 {
                 continue;
@@ -679,6 +752,23 @@ impl<const K: usize> Batch<K> {
             if pass {
                 out.depth[i] = d;
                 out.color[i] = self.rgba[lane];
+                written |= 1 << (lane / 4);
+            }
+        }
+        // the cells under the quads written
+        if !out.hiz.max.is_empty() {
+            let mut last = usize::MAX;
+            for quad in 0..self.quads {
+                if written & (1 << quad) != 0 {
+                    let i = self.pixel[4 * quad] as usize;
+                    let (x, y) = (i % out.hiz.width, i / out.hiz.width);
+                    let cell = (y / 2) * out.hiz.cells_w + x / 8;
+                    // a block's quads mostly share their cell
+                    if cell != last {
+                        out.hiz.refresh(out.depth, x / 8, y / 2);
+                        last = cell;
+                    }
+                }
             }
         }
         self.quads = 0;
@@ -725,6 +815,13 @@ fn raster_band<const K: usize, S: BlockShader<K>, Sm: pulp::Simd>(
         (c.iter().copied().min().unwrap_or(0), c.iter().copied().max().unwrap_or(0))
     };
     let corners = [corner(0), corner(1), corner(2)];
+    // the nearest eye distance of any fragment, less the early test's margin:
+    // q = 1/w is largest at a vertex (bounded up by a part in a million for
+    // its rounding within the triangle)
+    let near_lim = occ.and_then(|p| {
+        let q = t.q[0].max(t.q[0] + t.q[1]).max(t.q[0] + t.q[2]) * (1.0 + 1e-6);
+        (q > 0.0 && q.is_finite()).then(|| (1.0 / q - p.margin, p))
+    });
     let mut qy = y0;
     while qy < y1 {
         let py = qy as i64 * ONE + ONE / 2;
@@ -738,7 +835,14 @@ fn raster_band<const K: usize, S: BlockShader<K>, Sm: pulp::Simd>(
         let mut qx = x0;
         while qx < x1 {
             // trivial reject: an edge negative at every corner of the block
-            let outside = (0..3).any(|i| e_row[i] + corners[i].1 + t.bias[i] < 0);
+            let mut outside = (0..3).any(|i| e_row[i] + corners[i].1 + t.bias[i] < 0);
+            // hidden: more than the margin behind the farthest depth already
+            // under the block (the lane test of `raster_block`, for every
+            // lane at once)
+            if !outside && let Some((lim, p)) = near_lim {
+                let d = out.hiz.block(qx, qy - y_band);
+                outside = d < 1.0 && lim * (d * p.inv_r + 1.0) > p.near;
+            }
             if !outside {
                 let full = (0..3).all(|i| e_row[i] + corners[i].0 + t.bias[i] >= 0);
                 let mut mask = if full {
@@ -1162,6 +1266,83 @@ mod tests {
         );
         assert!(!p.mixed.load(Relaxed), "a block mixed program keys");
         assert!(all.color.iter().filter(|c| c[2] == 7).count() > (w * h / 4) as usize, "too little drawn to compare");
+    }
+
+    /// A program that writes depth up to `MARGIN` nearer than its triangle
+    /// (varying 1), as the NURBS program's exact point may lie: the early
+    /// depth test, lane by lane and block by block, must cull only what the
+    /// late test would reject.
+    struct Nearer {
+        quads: std::sync::atomic::AtomicUsize,
+    }
+    const NEAR: f32 = 0.5;
+    const FAR: f32 = 50.0;
+    const MARGIN: f32 = 0.4;
+    impl BlockShader<2> for Nearer {
+        const WRITES_DEPTH: bool = true;
+        fn shade_block(&self, b: &Block<2>, rgba: &mut [[u8; 4]; LANES], depth: &mut Lanes) {
+            let r = FAR / (NEAR - FAR);
+            for lane in 0..LANES {
+                if b.live & (1 << lane) != 0 {
+                    let id = b.v[0][lane].round() as u32;
+                    rgba[lane] = [id as u8, (id >> 8) as u8, 7, 255];
+                    depth[lane] = r * (NEAR / (b.w[lane] - b.v[1][lane]) - 1.0);
+                }
+            }
+            for q in 0..4 {
+                self.quads.fetch_add(((b.live >> (4 * q)) & 0xf != 0) as usize, std::sync::atomic::Ordering::Relaxed);
+            }
+        }
+    }
+
+    #[test]
+    fn early_depth_culls_only_what_the_late_test_rejects() {
+        // a near wall over the left half, then small triangles at scattered
+        // distances, some in front of it and most behind
+        let mut seed = 777u32;
+        let mut next = move || {
+            seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32
+        };
+        let (mut pos, mut vary, mut idx) = (Vec::new(), Vec::new(), Vec::new());
+        let mut tri = |p: [Vec3; 3], id: f32, off: f32| {
+            idx.extend((0..3).map(|k| (pos.len() + k) as u32));
+            pos.extend(p);
+            vary.extend([[id, off]; 3]);
+        };
+        tri([Vec3::new(-3.0, -3.0, -2.0), Vec3::new(0.1, -3.0, -2.0), Vec3::new(0.1, 3.0, -2.0)], 1.0, 0.0);
+        tri([Vec3::new(-3.0, -3.0, -2.0), Vec3::new(0.1, 3.0, -2.0), Vec3::new(-3.0, 3.0, -2.0)], 1.0, 0.0);
+        for k in 0..600 {
+            let d = 1.0 + 12.0 * next();
+            let (cx, cy) = ((2.0 * next() - 1.0) * 0.8 * d, (2.0 * next() - 1.0) * 0.8 * d);
+            let s = 0.08 * d;
+            let c = Vec3::new(cx, cy, -d);
+            let p = [c, c + Vec3::new(s, 0.3 * s, 0.2), c + Vec3::new(0.2 * s, s, -0.3)];
+            tri(p, (k + 2) as f32, MARGIN * next());
+        }
+        // the camera's projection (depth r·(near/w − 1), r = far/(near − far)), looking down −z
+        let r = FAR / (NEAR - FAR);
+        let view_proj = Mat4::from_cols(
+            Vec4::new(1.1, 0.0, 0.0, 0.0),
+            Vec4::new(0.0, 1.4, 0.0, 0.0),
+            Vec4::new(0.0, 0.0, r, -1.0),
+            Vec4::new(0.0, 0.0, r * NEAR, 0.0),
+        );
+        let (w, h) = (83, 64);
+        let draws = [Draw { first_index: 0, index_count: idx.len() as u32, material: 0 }];
+        let late = Nearer { quads: 0.into() };
+        let mut all = Target::new(w, h, [0, 0, 0, 0]);
+        rasterize(&mut all, view_proj, &pos, &vary, &idx, &draws, &late);
+        let early = Nearer { quads: 0.into() };
+        let mut culled = Target::new(w, h, [0, 0, 0, 0]);
+        let e = EarlyDepth { margin: MARGIN, near: NEAR, far: FAR };
+        rasterize_early(&mut culled, view_proj, &pos, &vary, &idx, &draws, &early, Some(e));
+        assert!(all.color == culled.color, "the early test changed the image");
+        assert!(all.depth.iter().zip(&culled.depth).all(|(a, b)| a.to_bits() == b.to_bits()));
+        use std::sync::atomic::Ordering::Relaxed;
+        let (a, b) = (late.quads.load(Relaxed), early.quads.load(Relaxed));
+        assert!(b * 4 < a * 3, "too little culled to test: {b} of {a} quads shaded");
+        assert!(all.color.iter().filter(|c| c[0] == 1).count() > (w * h / 4) as usize, "the wall is not drawn");
     }
 
     #[test]
