@@ -99,27 +99,117 @@ impl GeoRaster {
     }
 }
 
-/// GeoKeys of a user-defined transverse Mercator on WGS 84
-/// (ProjectedCSType and Projection user-defined, ProjCoordTrans 1), as a
-/// PROJ.4 definition: the form in which [`write_dem_geotiff`] stores a local
-/// metric frame. Other user-defined projections give None.
-fn user_defined_tm(keys: &[u16], doubles: &[f64]) -> Option<String> {
+/// GeoKeys of a user-defined projected CRS (ProjectedCSTypeGeoKey and
+/// ProjectionGeoKey 32767, the method in ProjCoordTransGeoKey) as a PROJ.4
+/// definition, for the methods elevation products use: transverse Mercator
+/// (1), Mercator (7), Lambert conformal conic with two standard parallels
+/// (8) and one (9), Lambert azimuthal equal-area (10), Albers equal-area
+/// (11) and polar stereographic (15, variants A and B). The datum is that
+/// of GeographicTypeGeoKey (an EPSG code; WGS 84 when absent), angles in
+/// degrees, lengths in metres, feet or US survey feet
+/// (ProjLinearUnitsGeoKey). Parameter keys as GDAL writes them, with the
+/// natural-origin keys standing in for missing false-origin ones. Other
+/// methods and units give None: the CRS is then named by its citation only.
+fn user_defined_projection(keys: &[u16], doubles: &[f64]) -> Option<String> {
     let entry = |id: u16| keys.chunks_exact(4).skip(1).find(|k| k[0] == id);
     let short = |id: u16| entry(id).filter(|k| k[1] == 0).map(|k| k[3]);
-    let double =
-        |id: u16| entry(id).filter(|k| k[1] == 34736 && k[2] == 1).and_then(|k| doubles.get(k[3] as usize).copied());
-    if short(3072) != Some(32767) || short(3074) != Some(32767) || short(3075) != Some(1) {
+    let double = |id: u16| {
+        entry(id)
+            .filter(|k| k[1] == 34736 && k[2] == 1)
+            .and_then(|k| doubles.get(k[3] as usize).copied())
+            .filter(|v| v.is_finite())
+    };
+    if short(3072) != Some(32767) || short(3074) != Some(32767) {
         return None;
     }
-    if !matches!(short(2048), Some(4326) | None) || !matches!(short(3076), Some(9001) | None) {
+    // angles in degrees only (GeogAngularUnitsGeoKey 9102)
+    if !matches!(short(2054), None | Some(9102)) {
         return None;
     }
-    let (lon, lat) = (double(3080)?, double(3081)?);
-    let (fe, fn_, k) = (double(3082).unwrap_or(0.0), double(3083).unwrap_or(0.0), double(3092).unwrap_or(1.0));
-    if ![lon, lat, fe, fn_, k].iter().all(|v| v.is_finite()) || k <= 0.0 || lat.abs() >= 90.0 {
-        return None;
-    }
-    Some(crate::crs::tm_definition(lon, lat, k, fe, fn_))
+    // the datum of the geographic CRS: its definition without the method
+    let datum = match short(2048) {
+        None | Some(4326) => "+datum=WGS84".to_string(),
+        Some(code) => {
+            let def = crs_definitions::from_code(code)?.proj4;
+            let rest = def.strip_prefix("+proj=longlat ")?;
+            rest.split_whitespace().filter(|p| !matches!(*p, "+no_defs" | "+type=crs")).collect::<Vec<_>>().join(" ")
+        }
+    };
+    let (units, metres) = match short(3076) {
+        None | Some(9001) => ("m", 1.0),
+        Some(9002) => ("ft", 0.3048),
+        Some(9003) => ("us-ft", 1200.0 / 3937.0),
+        Some(_) => return None,
+    };
+    // a key, else its stand-in
+    let either = |a: u16, b: u16| double(a).or_else(|| double(b));
+    let lat_ok = |v: f64| v.abs() <= 90.0;
+    // false easting and northing in metres (PROJ's +x_0, +y_0 are metres whatever +units)
+    let offsets = |e: u16, n: u16| (either(e, 3082).unwrap_or(0.0) * metres, either(n, 3083).unwrap_or(0.0) * metres);
+    let (method, (fe, fn_)) = match short(3075)? {
+        1 => {
+            let (lon, lat, k) = (double(3080)?, double(3081)?, double(3092).unwrap_or(1.0));
+            if !(lat_ok(lat) && lat.abs() < 90.0 && k > 0.0) {
+                return None;
+            }
+            let (fe, fn_) = offsets(3082, 3083);
+            if datum == "+datum=WGS84" && units == "m" {
+                // the form a local metric frame is written in (read back equal)
+                return Some(crate::crs::tm_definition(lon, lat, k, fe, fn_));
+            }
+            (format!("+proj=tmerc +lat_0={lat} +lon_0={lon} +k={k}"), (fe, fn_))
+        }
+        7 => {
+            let lon = double(3080).or_else(|| double(3088))?;
+            // Mercator (2SP) by its standard parallel, (1SP) by its scale
+            let m = match double(3078) {
+                Some(ts) if lat_ok(ts) && ts.abs() < 90.0 => format!("+proj=merc +lon_0={lon} +lat_ts={ts}"),
+                _ => format!("+proj=merc +lon_0={lon} +k={}", double(3092).unwrap_or(1.0)),
+            };
+            (m, offsets(3082, 3083))
+        }
+        8 | 11 => {
+            let (p1, p2) = (double(3078)?, double(3079)?);
+            let (lat0, lon0) = (either(3085, 3081)?, either(3084, 3080)?);
+            if ![p1, p2, lat0].iter().all(|v| lat_ok(*v)) {
+                return None;
+            }
+            let name = if short(3075) == Some(8) { "lcc" } else { "aea" };
+            (format!("+proj={name} +lat_1={p1} +lat_2={p2} +lat_0={lat0} +lon_0={lon0}"), offsets(3086, 3087))
+        }
+        9 => {
+            let (lat0, lon0, k) = (double(3081)?, double(3080)?, double(3092).unwrap_or(1.0));
+            if !(lat_ok(lat0) && lat0 != 0.0 && k > 0.0) {
+                return None;
+            }
+            (format!("+proj=lcc +lat_1={lat0} +lat_0={lat0} +lon_0={lon0} +k={k}"), offsets(3082, 3083))
+        }
+        10 => {
+            let (lat0, lon0) = (either(3089, 3081)?, either(3088, 3080)?);
+            if !lat_ok(lat0) {
+                return None;
+            }
+            (format!("+proj=laea +lat_0={lat0} +lon_0={lon0}"), offsets(3082, 3083))
+        }
+        15 => {
+            let lat = double(3081)?;
+            let lon0 = either(3095, 3080)?;
+            if !(lat_ok(lat) && lat != 0.0) {
+                return None;
+            }
+            let pole = if lat > 0.0 { 90 } else { -90 };
+            // variant A: origin at the pole, a scale there; variant B: the
+            // latitude of true scale
+            let m = if lat.abs() == 90.0 {
+                format!("+proj=stere +lat_0={pole} +lon_0={lon0} +k={}", double(3092).unwrap_or(1.0))
+            } else {
+                format!("+proj=stere +lat_0={pole} +lat_ts={lat} +lon_0={lon0}")
+            };
+            (m, offsets(3082, 3083))
+        }
+        _ => return None,
+    };
+    Some(format!("{method} +x_0={fe} +y_0={fn_} +units={units} {datum} +no_defs"))
 }
 
 /// Writes band 1 of `r` (an elevation model) as a float GeoTIFF in `crs`,
@@ -316,7 +406,7 @@ fn read_header<R: Read + Seek>(
     let geographic = key(1024) == Some(2) || (key(1024).is_none() && key(3072).is_none() && key(3074).is_none());
     let epsg = key(3072).or_else(|| key(2048).filter(|_| geographic));
     let projection = key(3074);
-    let proj4 = user_defined_tm(&keys, &d.get_tag_f64_vec(Tag::GeoDoubleParamsTag).unwrap_or_default());
+    let proj4 = user_defined_projection(&keys, &d.get_tag_f64_vec(Tag::GeoDoubleParamsTag).unwrap_or_default());
     // VerticalUnitsGeoKey: heights in feet come back in metres
     let z_scale = match key(4099) {
         None | Some(9001) | Some(32767) => 1.0,
@@ -627,6 +717,131 @@ pub fn fill_holes(r: &mut GeoRaster) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A GeoKey directory of a user-defined projection: short keys, then
+    /// double keys (values in GeoDoubleParams order).
+    fn user_keys(shorts: &[(u16, u16)], doubles: &[(u16, f64)]) -> (Vec<u16>, Vec<f64>) {
+        let mut k = vec![1u16, 1, 0, (shorts.len() + doubles.len() + 2) as u16, 3072, 0, 1, 32767, 3074, 0, 1, 32767];
+        for (id, v) in shorts {
+            k.extend_from_slice(&[*id, 0, 1, *v]);
+        }
+        for (i, (id, _)) in doubles.iter().enumerate() {
+            k.extend_from_slice(&[*id, 34736, 1, i as u16]);
+        }
+        (k, doubles.iter().map(|d| d.1).collect())
+    }
+
+    /// The projected coordinates of `lon_lat` (in the geographic CRS of
+    /// EPSG code `geog`) under the user-defined projection of the keys.
+    fn project(shorts: &[(u16, u16)], doubles: &[(u16, f64)], geog: u16, lon_lat: [f64; 2]) -> [f64; 2] {
+        let (k, d) = user_keys(shorts, doubles);
+        let def = user_defined_projection(&k, &d).expect("a supported projection");
+        let crs = crate::crs::Crs::from_definition(&def, "test").unwrap();
+        crate::crs::Crs::from_epsg(geog).unwrap().point(&crs, lon_lat)
+    }
+
+    /// The worked examples of EPSG Guidance Note 7-2 (coordinate conversions
+    /// and transformations), entered as the GeoKeys a user-defined
+    /// projection carries: every method the reader maps, on the ellipsoids,
+    /// units and parameter keys of those examples.
+    #[test]
+    fn user_defined_projections_match_the_epsg_worked_examples() {
+        let dms = |d: f64, m: f64, s: f64| d.signum() * (d.abs() + m / 60.0 + s / 3600.0);
+        let close = |p: [f64; 2], e: [f64; 2], tol: f64| {
+            assert!((p[0] - e[0]).abs() < tol && (p[1] - e[1]).abs() < tol, "{p:?}, expected {e:?}");
+        };
+        // Lambert conic conformal (2SP), NAD27 / Texas South Central on Clarke
+        // 1866 (here through JAD69's Clarke 1866, no datum shift), US survey feet
+        let p = project(
+            &[(3075, 8), (2048, 4242), (3076, 9003)],
+            &[
+                (3078, dms(28.0, 23.0, 0.0)),
+                (3079, dms(30.0, 17.0, 0.0)),
+                (3085, dms(27.0, 50.0, 0.0)),
+                (3084, -99.0),
+                (3086, 2_000_000.0),
+                (3087, 0.0),
+            ],
+            4242,
+            [-96.0, 28.5],
+        );
+        close(p, [2_963_503.91, 254_759.80], 0.05);
+        // Lambert conic conformal (1SP), JAD69 / Jamaica National Grid
+        let p = project(
+            &[(3075, 9), (2048, 4242)],
+            &[(3081, 18.0), (3080, -77.0), (3092, 1.0), (3082, 250_000.0), (3083, 150_000.0)],
+            4242,
+            [dms(-76.0, 56.0, 37.26), dms(17.0, 55.0, 55.80)],
+        );
+        close(p, [255_966.58, 142_493.51], 0.02);
+        // Lambert azimuthal equal area, ETRS89 / LAEA Europe (GRS 1980)
+        let p = project(
+            &[(3075, 10), (2048, 4258)],
+            &[(3089, 52.0), (3088, 10.0), (3082, 4_321_000.0), (3083, 3_210_000.0)],
+            4258,
+            [5.0, 50.0],
+        );
+        close(p, [3_962_799.45, 2_999_718.85], 0.02);
+        // Mercator (1SP), Makassar / NEIEZ (Bessel 1841)
+        let p = project(
+            &[(3075, 7), (2048, 4257)],
+            &[(3080, 110.0), (3092, 0.997), (3082, 3_900_000.0), (3083, 900_000.0)],
+            4257,
+            [120.0, -3.0],
+        );
+        close(p, [5_009_726.58, 569_150.82], 0.02);
+        // polar stereographic (variant A), WGS 84 / UPS North
+        let p = project(
+            &[(3075, 15), (2048, 4326)],
+            &[(3081, 90.0), (3095, 0.0), (3092, 0.994), (3082, 2_000_000.0), (3083, 2_000_000.0)],
+            4326,
+            [44.0, 73.0],
+        );
+        close(p, [3_320_416.75, 632_668.43], 0.02);
+        // polar stereographic (variant B), WGS 84 / Australian Antarctic Polar Stereographic
+        let p = project(
+            &[(3075, 15)],
+            &[(3081, -71.0), (3095, 70.0), (3082, 6_000_000.0), (3083, 6_000_000.0)],
+            4326,
+            [120.0, -75.0],
+        );
+        close(p, [7_255_380.79, 7_053_389.56], 0.02);
+        // Albers equal area: the same point as EPSG:5070 (NAD83 / Conus Albers) puts it
+        let keys = [(3078, 29.5), (3079, 45.5), (3085, 23.0), (3084, -96.0), (3086, 0.0), (3087, 0.0)];
+        let p = project(&[(3075, 11), (2048, 4269)], &keys, 4269, [-100.0, 40.0]);
+        let q =
+            crate::crs::Crs::from_epsg(4269).unwrap().point(&crate::crs::Crs::from_epsg(5070).unwrap(), [-100.0, 40.0]);
+        close(p, q, 1e-6);
+        // transverse Mercator off WGS 84: OSGB 1936 / British National Grid
+        let p = project(
+            &[(3075, 1), (2048, 4277)],
+            &[(3081, 49.0), (3080, -2.0), (3092, 0.999_601_271_7), (3082, 400_000.0), (3083, -100_000.0)],
+            4277,
+            [0.5, 50.5],
+        );
+        close(p, [577_274.99, 69_740.50], 0.02);
+    }
+
+    #[test]
+    fn user_defined_projections_outside_the_methods_read_are_left_unnamed() {
+        // oblique Mercator (3): not mapped
+        let (k, d) = user_keys(&[(3075, 3)], &[(3081, 4.0), (3080, 115.0)]);
+        assert_eq!(user_defined_projection(&k, &d), None);
+        // grads (9105) as the angular unit
+        let (k, d) = user_keys(&[(3075, 9), (2054, 9105)], &[(3081, 52.0), (3080, 0.0)]);
+        assert_eq!(user_defined_projection(&k, &d), None);
+        // a linear unit other than metre and feet (9004: chain, say)
+        let (k, d) = user_keys(&[(3075, 9), (3076, 9004)], &[(3081, 52.0), (3080, 0.0)]);
+        assert_eq!(user_defined_projection(&k, &d), None);
+        // a missing parameter, a latitude past the pole
+        let (k, d) = user_keys(&[(3075, 8)], &[(3078, 30.0), (3085, 20.0), (3084, 0.0)]);
+        assert_eq!(user_defined_projection(&k, &d), None);
+        let (k, d) = user_keys(&[(3075, 10)], &[(3081, 95.0), (3080, 0.0)]);
+        assert_eq!(user_defined_projection(&k, &d), None);
+        // an unknown geographic CRS
+        let (k, d) = user_keys(&[(3075, 9), (2048, 1)], &[(3081, 52.0), (3080, 0.0)]);
+        assert_eq!(user_defined_projection(&k, &d), None);
+    }
 
     fn data(name: &str) -> std::path::PathBuf {
         // kept in the repository (the same files as ../shared/data/terrain)

@@ -545,6 +545,43 @@ mod tests {
 
     const GEOGRAPHIC_POINT: [[u16; 4]; 3] = [[1024, 0, 1, 2], [1025, 0, 1, 2], [2048, 0, 1, 4326]];
 
+    /// A DEM in a user-defined Lambert conformal conic (the parameters of
+    /// RGF93 / Lambert-93 as GeoKeys and GeoDoubleParams, no EPSG code) is
+    /// read into that projection: its posts lie where EPSG:2154 puts them.
+    #[test]
+    fn user_defined_lambert_conic_keys_are_read_as_their_projection() {
+        let tie = (Tag::ModelTiepointTag, vec![0.0, 0.0, 0.0, 650_000.0, 6_860_000.0, 0.0]);
+        let scale = (Tag::ModelPixelScaleTag, vec![25.0, 25.0, 0.0]);
+        let doubles = (Tag::GeoDoubleParamsTag, vec![49.0, 44.0, 46.5, 3.0, 700_000.0, 6_600_000.0]);
+        let keys = [
+            [1024, 0, 1, 1],
+            [2048, 0, 1, 4171],
+            [3072, 0, 1, 32767],
+            [3074, 0, 1, 32767],
+            [3075, 0, 1, 8],
+            [3076, 0, 1, 9001],
+            [3078, 34736, 1, 0],
+            [3079, 34736, 1, 1],
+            [3085, 34736, 1, 2],
+            [3084, 34736, 1, 3],
+            [3086, 34736, 1, 4],
+            [3087, 34736, 1, 5],
+        ];
+        let b = int16_tiff(4, 3, &[100; 12], &[tie, scale, doubles], &keys, None);
+        let r = parse(&b).unwrap();
+        let crs = r.crs().unwrap();
+        assert!(!crs.is_geographic() && crs.unit_metres() == 1.0, "{crs:?}");
+        let l93 = Crs::from_epsg(2154).unwrap();
+        let wgs = Crs::wgs84();
+        for corner in [[650_000.0, 6_860_000.0], [650_100.0, 6_859_925.0]] {
+            let (a, b) = (crs.point(&wgs, corner), l93.point(&wgs, corner));
+            assert!((a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9, "{a:?} vs {b:?}");
+        }
+        // Paris lies near the tiepoint
+        let p = crs.point(&wgs, [650_000.0, 6_860_000.0]);
+        assert!((p[0] - 2.3).abs() < 0.1 && (p[1] - 48.85).abs() < 0.1, "{p:?}");
+    }
+
     #[test]
     fn geographic_keys_pixel_is_point_and_feet_are_read() {
         let tie = (Tag::ModelTiepointTag, vec![0.0, 0.0, 0.0, 7.0, 46.0, 0.0]);
