@@ -212,6 +212,100 @@ fn user_defined_projection(keys: &[u16], doubles: &[f64]) -> Option<String> {
     Some(format!("{method} +x_0={fe} +y_0={fn_} +units={units} {datum} +no_defs"))
 }
 
+/// Geographic CRSs whose datum a user-defined projection may be written
+/// on (GeographicTypeGeoKey): WGS 84, NAD83, ETRS89, RGF93, GDA94,
+/// GDA2020, JGD2000, NZGD2000, OSGB 1936, NAD27-era Clarke 1866 (JAD69),
+/// Makassar (Bessel).
+const GEOGRAPHIC_CODES: [u16; 11] = [4326, 4269, 4258, 4171, 4283, 7844, 4612, 4167, 4277, 4242, 4257];
+
+/// A GeoKey and its value in the directory.
+type ShortKey = (u16, u16);
+/// A GeoKey and its value in GeoDoubleParams.
+type DoubleKey = (u16, f64);
+
+/// The GeoKeys (short keys, double keys) that describe a PROJ.4 definition
+/// of one of the projections [`user_defined_projection`] reads, so that a
+/// DEM written in it reads back in the same CRS; None for any other.
+fn user_defined_keys(def: &str) -> Option<(Vec<ShortKey>, Vec<DoubleKey>)> {
+    let mut p: std::collections::BTreeMap<&str, &str> = std::collections::BTreeMap::new();
+    let mut datum = Vec::new();
+    for part in def.split_whitespace() {
+        let (k, v) = part.strip_prefix('+')?.split_once('=').unwrap_or((part.trim_start_matches('+'), ""));
+        match k {
+            "datum" | "ellps" | "towgs84" | "a" | "b" | "rf" | "nadgrids" | "pm" => datum.push(part),
+            "no_defs" | "type" => {}
+            _ => {
+                p.insert(k, v);
+            }
+        }
+    }
+    let datum = datum.join(" ");
+    let geog = GEOGRAPHIC_CODES.into_iter().find(|&c| {
+        let d = crs_definitions::from_code(c).map(|d| d.proj4).unwrap_or("");
+        let rest: Vec<&str> = d
+            .strip_prefix("+proj=longlat ")
+            .unwrap_or("")
+            .split_whitespace()
+            .filter(|x| !matches!(*x, "+no_defs" | "+type=crs"))
+            .collect();
+        rest.join(" ") == datum
+    })?;
+    let num = |k: &str| p.get(k).and_then(|v| v.parse::<f64>().ok()).filter(|v| v.is_finite());
+    let (unit, metres) = match p.get("units").copied() {
+        None | Some("m") => (9001, 1.0),
+        Some("ft") => (9002, 0.3048),
+        Some("us-ft") => (9003, 1200.0 / 3937.0),
+        Some(_) => return None,
+    };
+    let (lon0, lat0) = (num("lon_0").unwrap_or(0.0), num("lat_0").unwrap_or(0.0));
+    let (fe, fn_) = (num("x_0").unwrap_or(0.0) / metres, num("y_0").unwrap_or(0.0) / metres);
+    let k = num("k").or_else(|| num("k0")).unwrap_or(1.0);
+    let known = |keys: &[&str]| p.keys().all(|k| keys.contains(k));
+    let (method, mut d): (u16, Vec<(u16, f64)>) = match *p.get("proj")? {
+        "tmerc" if known(&["proj", "lon_0", "lat_0", "k", "k0", "x_0", "y_0", "units"]) => {
+            (1, vec![(3080, lon0), (3081, lat0), (3092, k), (3082, fe), (3083, fn_)])
+        }
+        "merc" if known(&["proj", "lon_0", "lat_ts", "k", "k0", "x_0", "y_0", "units"]) => match num("lat_ts") {
+            Some(ts) => (7, vec![(3080, lon0), (3078, ts), (3082, fe), (3083, fn_)]),
+            None => (7, vec![(3080, lon0), (3092, k), (3082, fe), (3083, fn_)]),
+        },
+        m @ ("lcc" | "aea")
+            if known(&["proj", "lon_0", "lat_0", "lat_1", "lat_2", "k", "k0", "x_0", "y_0", "units"]) =>
+        {
+            let p1 = num("lat_1")?;
+            match num("lat_2") {
+                Some(p2) if m == "aea" || p2 != p1 => (
+                    if m == "lcc" { 8 } else { 11 },
+                    vec![(3078, p1), (3079, p2), (3085, lat0), (3084, lon0), (3086, fe), (3087, fn_)],
+                ),
+                // one standard parallel: the latitude of origin (1SP)
+                _ if m == "lcc" && p1 == lat0 => {
+                    (9, vec![(3081, lat0), (3080, lon0), (3092, k), (3082, fe), (3083, fn_)])
+                }
+                _ => return None,
+            }
+        }
+        "laea" if known(&["proj", "lon_0", "lat_0", "x_0", "y_0", "units"]) => {
+            (10, vec![(3089, lat0), (3088, lon0), (3082, fe), (3083, fn_)])
+        }
+        "stere"
+            if known(&["proj", "lon_0", "lat_0", "lat_ts", "k", "k0", "x_0", "y_0", "units"]) && lat0.abs() == 90.0 =>
+        {
+            match num("lat_ts").filter(|t| t.abs() != 90.0) {
+                Some(ts) if ts.signum() == lat0.signum() => {
+                    (15, vec![(3081, ts), (3095, lon0), (3082, fe), (3083, fn_)])
+                }
+                Some(_) => return None,
+                None => (15, vec![(3081, lat0), (3095, lon0), (3092, k), (3082, fe), (3083, fn_)]),
+            }
+        }
+        _ => return None,
+    };
+    d.sort_by_key(|e| e.0);
+    let shorts = vec![(2048, geog), (3072, 32767), (3074, 32767), (3075, method), (3076, unit)];
+    Some((shorts, d))
+}
+
 /// Writes band 1 of `r` (an elevation model) as a float GeoTIFF in `crs`,
 /// atomically: north-up tiepoint and pixel scale, the CRS as its EPSG code
 /// or, for a local transverse Mercator, as user-defined GeoKeys; nodata as
@@ -233,22 +327,30 @@ pub fn dem_geotiff_bytes(r: &GeoRaster, crs: &crate::crs::Crs) -> Result<Vec<u8>
     let citation = format!("{citation}|");
     let cite_len = u16::try_from(citation.len()).map_err(|_| werr("the CRS's name is too long".into()))?;
     keys.extend_from_slice(&[1024, 0, 1, if geographic { 2 } else { 1 }, 1025, 0, 1, 1, 1026, 34737, cite_len, 0]);
-    match (crs.epsg(), crs.transverse_mercator()) {
-        (Some(c), _) => keys.extend_from_slice(&[if geographic { 2048 } else { 3072 }, 0, 1, c]),
-        (None, Some([lon, lat, k, fe, fn_])) => {
-            keys.extend_from_slice(&[
-                2048, 0, 1, 4326, 3072, 0, 1, 32767, 3074, 0, 1, 32767, 3075, 0, 1, 1, 3076, 0, 1, 9001,
-            ]);
-            for (id, v) in [(3080u16, lon), (3081, lat), (3082, fe), (3083, fn_), (3092, k)] {
-                keys.extend_from_slice(&[id, 34736, 1, doubles.len() as u16]);
-                doubles.push(v);
+    match crs.epsg() {
+        Some(c) => keys.extend_from_slice(&[if geographic { 2048 } else { 3072 }, 0, 1, c]),
+        None => {
+            let Some((shorts, params)) = user_defined_keys(crs.definition()) else {
+                return Err(werr(format!(
+                    "{} has no EPSG code and is not a projection GeoKeys can describe (transverse Mercator, \
+                     Mercator, Lambert conformal conic, Lambert azimuthal equal-area, Albers or polar \
+                     stereographic on the datum of a geographic EPSG code, in metres or feet)",
+                    crs.name()
+                )));
+            };
+            // keys in ascending order, as the directory requires
+            let mut all: Vec<(u16, Option<u16>, f64)> = shorts.iter().map(|&(id, v)| (id, Some(v), 0.0)).collect();
+            all.extend(params.iter().map(|&(id, v)| (id, None, v)));
+            all.sort_by_key(|e| e.0);
+            for (id, short, v) in all {
+                match short {
+                    Some(x) => keys.extend_from_slice(&[id, 0, 1, x]),
+                    None => {
+                        keys.extend_from_slice(&[id, 34736, 1, doubles.len() as u16]);
+                        doubles.push(v);
+                    }
+                }
             }
-        }
-        (None, None) => {
-            return Err(werr(format!(
-                "{} has no EPSG code and is no transverse Mercator: GeoKeys cannot name it",
-                crs.name()
-            )));
         }
     }
     let mut dir = vec![1u16, 1, 0, (keys.len() / 4) as u16];

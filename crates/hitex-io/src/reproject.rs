@@ -715,12 +715,38 @@ mod tests {
             assert!(crs == to, "{crs:?} read back for {to:?}");
             assert_eq!(crs.name(), to.name());
         }
-        // a CRS that GeoKeys cannot name is refused, nothing written
-        let lcc =
-            Crs::from_definition("+proj=lcc +lat_1=45 +lat_2=47 +lon_0=7 +datum=WGS84 +units=m", "a conic").unwrap();
-        let path = d.join("lcc.tif");
-        let e = crate::geotiff::write_dem_geotiff(&path, &src, &lcc).unwrap_err().to_string();
-        assert!(e.contains("a conic") && !path.exists(), "{e}");
+        // projections without an EPSG code go out as user-defined GeoKeys
+        // and come back as the same projection (points agree to 1e-6 m)
+        for def in [
+            "+proj=lcc +lat_1=45 +lat_2=47 +lon_0=7 +datum=WGS84 +units=m",
+            "+proj=lcc +lat_1=46 +lat_0=46 +lon_0=7.5 +k=0.9998 +x_0=600000 +y_0=200000 +ellps=GRS80 +units=m",
+            "+proj=aea +lat_1=44 +lat_2=48 +lat_0=45 +lon_0=8 +x_0=1000 +y_0=-500 +datum=WGS84 +units=us-ft",
+            "+proj=laea +lat_0=46 +lon_0=7 +x_0=4321000 +y_0=3210000 +ellps=GRS80",
+            "+proj=merc +lon_0=5 +lat_ts=40 +datum=WGS84 +units=ft",
+            "+proj=tmerc +lat_0=46 +lon_0=7 +k=0.9996 +x_0=500000 +ellps=GRS80 +units=m",
+            "+proj=stere +lat_0=90 +lat_ts=60 +lon_0=7 +x_0=2000000 +y_0=2000000 +datum=WGS84",
+        ] {
+            let to = Crs::from_definition(def, "a user's projection").unwrap();
+            let grid = covering_grid(&src, &Crs::wgs84(), &to, 1 << 20).unwrap();
+            let r = reproject(&src, &Crs::wgs84(), &to, &grid, None);
+            let path = d.join("user.tif");
+            crate::geotiff::write_dem_geotiff(&path, &r, &to).unwrap();
+            let back = crate::geotiff::load_geotiff(&path).unwrap();
+            let crs = back.crs().unwrap_or_else(|e| panic!("{def}: {e}"));
+            assert_eq!(crs.unit_metres(), to.unit_metres(), "{def}");
+            for lon_lat in [[7.0, 46.0], [6.2, 45.1], [8.9, 47.3]] {
+                let (a, b) = (Crs::wgs84().point(&crs, lon_lat), Crs::wgs84().point(&to, lon_lat));
+                assert!((a[0] - b[0]).abs() < 1e-6 && (a[1] - b[1]).abs() < 1e-6, "{def}: {a:?} vs {b:?}");
+            }
+        }
+        // a CRS that GeoKeys cannot name (no supported method, or a datum of
+        // no known geographic code) is refused, nothing written
+        for def in ["+proj=eqc +lon_0=7 +datum=WGS84 +units=m", "+proj=lcc +lat_1=45 +lat_2=47 +lon_0=7 +ellps=intl"] {
+            let other = Crs::from_definition(def, "a conic").unwrap();
+            let path = d.join("other.tif");
+            let e = crate::geotiff::write_dem_geotiff(&path, &src, &other).unwrap_err().to_string();
+            assert!(e.contains("a conic") && !path.exists(), "{e}");
+        }
         std::fs::remove_dir_all(&d).ok();
     }
 }
