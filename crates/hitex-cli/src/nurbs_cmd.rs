@@ -165,8 +165,9 @@ pub struct RenderArgs {
     /// model; deviation: the 99th percentile of |deviation|, rounded up).
     #[arg(long, allow_negative_numbers = true)]
     pub range: Option<f32>,
-    /// The reference of `--mode deviation`: a mesh (.stl, .obj) or a point
-    /// cloud (.xyz text, x y z a line; .json {"points": …}).
+    /// The reference of `--mode deviation`: a mesh (.stl, .obj, .ply with
+    /// faces) or a point cloud (.xyz text, x y z a line; .json {"points": …};
+    /// .ply without faces).
     #[arg(long, value_name = "FILE")]
     pub reference: Option<PathBuf>,
     /// `--mode deviation`: deviations within ± this many model units are in
@@ -230,7 +231,7 @@ pub struct RenderArgs {
 pub struct DeviationArgs {
     /// Model name or file.
     pub model: String,
-    /// The points: `{"points": [[x, y, z], …]}` (.json) or XYZ text (x y z a line).
+    /// The points: `{"points": [[x, y, z], …]}` (.json), the vertices of a PLY file (.ply), or XYZ text (x y z a line).
     #[arg(long)]
     pub points: PathBuf,
     /// Print JSON: every distance, and max, mean, RMS with where the largest is.
@@ -1180,7 +1181,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 }
                 (None, NurbsMode::Deviation) => {
                     return Err(CliError::Input(
-                        "--mode deviation needs --reference FILE: a mesh (.stl, .obj) or points (.xyz, .json)".into(),
+                        "--mode deviation needs --reference FILE: a mesh (.stl, .obj, .ply) or points (.xyz, .json, .ply)".into(),
                     ));
                 }
                 (Some(_), _) => {

@@ -305,6 +305,38 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
         v.push(c("STL (deviation reference)", what, &args));
     }
+    // PLY references of the deviation mode (meshes, or points without faces)
+    let ply = |name: &str, bytes: &[u8]| -> Vec<String> {
+        ["nurbs", "render", "teapot", "--mode", "deviation", "--reference", &w(name, bytes), "-o", &out]
+            .map(String::from)
+            .to_vec()
+    };
+    let square = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    let mut binary = square.split("end_header\n").next().unwrap_or_default().replace("ascii", "binary_little_endian");
+    binary.push_str("end_header\n");
+    let mut binary = binary.into_bytes();
+    for x in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+        binary.extend(x.to_le_bytes());
+    }
+    binary.push(3);
+    for i in [0i32, 1, 2] {
+        binary.extend(i.to_le_bytes());
+    }
+    for (what, args) in [
+        ("binary, truncated inside a vertex", ply("cut.ply", &binary[..binary.len() - 20])),
+        (
+            "binary, claiming 4 billion vertices",
+            ply("claims.ply", &String::from_utf8_lossy(&binary).replace("vertex 3", "vertex 4000000000").into_bytes()),
+        ),
+        ("ASCII, a vertex that is not a number", ply("word.ply", square.replace("1 0 0\n", "1 oops 0\n").as_bytes())),
+        ("ASCII, a face index past the vertices", ply("index.ply", square.replace("3 0 1 2", "3 0 1 7").as_bytes())),
+        ("ASCII, a face of two vertices", ply("two.ply", square.replace("3 0 1 2", "2 0 1").as_bytes())),
+        ("a header without `end_header`", ply("open.ply", square.replace("end_header\n", "").as_bytes())),
+        ("an unknown property type", ply("type.ply", square.replace("float z", "quad z").as_bytes())),
+    ] {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        v.push(c("PLY (deviation reference)", what, &args));
+    }
     v.push(c(
         "points (JSON)",
         "a point of two coordinates",

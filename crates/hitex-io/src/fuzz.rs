@@ -51,11 +51,13 @@ pub enum Target {
     Mbtiles,
     /// STL meshes, binary or ASCII.
     Stl,
+    /// PLY meshes and point clouds, ASCII or binary.
+    Ply,
 }
 
 impl Target {
     /// Every target.
-    pub const ALL: [Target; 18] = [
+    pub const ALL: [Target; 19] = [
         Target::Iges,
         Target::ObjFreeform,
         Target::NurbsJson,
@@ -74,6 +76,7 @@ impl Target {
         Target::Exr,
         Target::Mbtiles,
         Target::Stl,
+        Target::Ply,
     ];
 
     /// The target's name: its folder under `fuzz/` and its fuzz binary.
@@ -97,6 +100,7 @@ impl Target {
             Target::Exr => "exr",
             Target::Mbtiles => "mbtiles",
             Target::Stl => "stl",
+            Target::Ply => "ply",
         }
     }
 
@@ -183,6 +187,14 @@ pub fn run(target: Target, data: &[u8]) -> bool {
         Target::Stl => match crate::stl::parse_stl(data) {
             // and the search hierarchy built on them, queried once
             Ok(t) => hitex_core::nurbs::deviation::Reference::mesh(t).closest([0.0; 3], f64::INFINITY).is_some(),
+            Err(_) => false,
+        },
+        Target::Ply => match crate::ply::parse_ply(data) {
+            // and the search hierarchy built on the mesh, queried once
+            Ok(crate::stl::ReferenceData::Mesh(t)) => {
+                hitex_core::nurbs::deviation::Reference::mesh(t).closest([0.0; 3], f64::INFINITY).is_some()
+            }
+            Ok(crate::stl::ReferenceData::Points(p)) => !p.is_empty(),
             Err(_) => false,
         },
     }

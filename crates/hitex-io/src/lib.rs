@@ -27,6 +27,7 @@ pub mod mosaic;
 pub mod nurbs_json;
 pub mod obj;
 pub mod obj_freeform;
+pub mod ply;
 pub mod points;
 pub mod reproject;
 pub mod scene_file;

@@ -1,7 +1,8 @@
 //! Point sets to measure against a model: `{"points": [[x, y, z], …]}` JSON,
 //! or `.xyz` text (three numbers a line, separated by spaces, tabs or commas;
 //! further columns such as normals or colours are ignored; `#` starts a
-//! comment). Every error names the file and the point or line.
+//! comment), or the vertices of a PLY file ([`crate::ply`]). Every error
+//! names the file and the point or line.
 
 use crate::IoError;
 use std::path::Path;
@@ -9,8 +10,11 @@ use std::path::Path;
 /// Largest point file read, in bytes.
 pub const MAX_POINTS_FILE_BYTES: u64 = 1 << 30;
 
-/// Reads the points of `path` (`.json`, otherwise XYZ text).
+/// Reads the points of `path` (`.json`, `.ply` (its vertices), otherwise XYZ text).
 pub fn load_points(path: &Path) -> Result<Vec<[f64; 3]>, IoError> {
+    if path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("ply")) {
+        return crate::ply::load_ply_vertices(path);
+    }
     let read = |source| IoError::Read { path: path.to_path_buf(), source };
     let meta = std::fs::metadata(path).map_err(read)?;
     if meta.len() > MAX_POINTS_FILE_BYTES {

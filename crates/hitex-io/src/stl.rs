@@ -1,6 +1,6 @@
 //! STL meshes (binary and ASCII), the form in which scanners and CAD
 //! systems exchange triangles, and the reference a surface is measured
-//! against ([`load_reference`]: STL, OBJ, or a point file).
+//! against ([`load_reference`]: STL, OBJ, PLY, or a point file).
 //!
 //! Binary: an 80-byte header, a little-endian u32 triangle count, then 50
 //! bytes a triangle (normal, three vertices as f32, a 16-bit attribute). A
@@ -133,14 +133,14 @@ fn ascii_stl(text: &str) -> Result<Vec<Triangle>, String> {
 /// What a surface is measured against: triangles or points.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ReferenceData {
-    /// A mesh (STL, OBJ).
+    /// A mesh (STL, OBJ, PLY with faces).
     Mesh(Vec<Triangle>),
-    /// A point cloud (XYZ text, `{"points": …}` JSON).
+    /// A point cloud (XYZ text, `{"points": …}` JSON, PLY without faces).
     Points(Vec<[f64; 3]>),
 }
 
 /// Reads a reference by its extension: `.stl`, `.obj` (every group's
-/// triangles), otherwise a point file ([`crate::points::load_points`]:
+/// triangles), `.ply` ([`crate::ply::load_ply`]: faces, else points), otherwise a point file ([`crate::points::load_points`]:
 /// `.xyz`, `.txt`, `.pts`, `.json`).
 pub fn load_reference(path: &Path) -> Result<ReferenceData, IoError> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
@@ -162,10 +162,7 @@ pub fn load_reference(path: &Path) -> Result<ReferenceData, IoError> {
             }
             Ok(ReferenceData::Mesh(tris))
         }
-        Some("ply") => Err(IoError::Format {
-            path: path.to_path_buf(),
-            message: "PLY is not read: give an STL or OBJ mesh, or the points as XYZ text (x y z a line)".into(),
-        }),
+        Some("ply") => crate::ply::load_ply(path),
         _ => crate::points::load_points(path).map(ReferenceData::Points),
     }
 }
