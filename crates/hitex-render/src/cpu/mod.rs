@@ -59,6 +59,18 @@ impl CpuRenderer {
     ) {
         let frame = scene.frame(camera, width, height);
         let program = nurbs::NurbsProgram::new(&frame, &scene.packed);
+        Self::draw_nurbs(target, scene, camera, &frame, &program);
+    }
+
+    /// Draws the tessellation of `scene` with `program` (the NURBS program
+    /// bound to `frame`).
+    fn draw_nurbs<S: raster::BlockShader<{ nurbs::VARYINGS }>>(
+        target: &mut raster::Target,
+        scene: &crate::nurbs::PreparedNurbs,
+        camera: &Camera,
+        frame: &crate::nurbs::NurbsFrame,
+        program: &S,
+    ) {
         use rayon::prelude::*;
         let varyings: Vec<[f32; nurbs::VARYINGS]> = scene.vertices.par_iter().map(nurbs::varyings).collect();
         let positions: Vec<glam::Vec3> =
@@ -108,7 +120,7 @@ impl CpuRenderer {
         } else {
             &scene.indices
         };
-        raster::rasterize_early(target, view_proj, &positions, &varyings, indices, &draws, &program, early);
+        raster::rasterize_early(target, view_proj, &positions, &varyings, indices, &draws, program, early);
     }
 }
 
@@ -159,5 +171,74 @@ impl CpuRenderer {
         let view_proj = glam::Mat4::from_cols_array_2d(&frame.view_proj);
         raster::rasterize(&mut target, view_proj, &positions, &varyings, &scene.indices, &draws, &program);
         Ok(Frame { width, height, rgba: target.into_rgba() })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nurbs::{NurbsMode, PreparedNurbs};
+    use raster::{Block, BlockShader};
+    use simd::{LANES, Lanes};
+
+    /// The NURBS program handed its lanes in quads, as the rasterizer hands
+    /// them to a program that does not pack lanes (and the derivatives taken
+    /// from each quad by the program).
+    struct InQuads<'a>(nurbs::NurbsProgram<'a>);
+    impl BlockShader<{ nurbs::VARYINGS }> for InQuads<'_> {
+        const WRITES_DEPTH: bool = true;
+        fn shade_block(&self, b: &Block<{ nurbs::VARYINGS }>, rgba: &mut [[u8; 4]; LANES], depth: &mut Lanes) {
+            let mut quads = b.clone();
+            quads.fill_grads([3, 4]);
+            self.0.shade_block(&quads, rgba, depth);
+        }
+    }
+
+    /// Packing the NURBS program's lanes one by one, whatever patch and
+    /// quad they come from, draws the bytes that packing whole quads of one
+    /// patch draws: trimmed faces, seams and boundary fans, mixed degrees,
+    /// the block path's modes and the per-lane ones, with an overlay.
+    #[test]
+    fn nurbs_lanes_packed_one_by_one_draw_the_bytes_of_quads() {
+        let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data");
+        let mut models = Vec::new();
+        let holed = hitex_io::models::load_model(&format!("{data}/holed-square.igs")).unwrap();
+        let mut p = PreparedNurbs::new(holed.nurbs(), &holed.ranges(), 8);
+        p.set_trims(&holed.surfaces.iter().map(|s| s.trim.clone()).collect::<Vec<_>>());
+        models.push(("holed square", p));
+        let part = hitex_io::models::load_model(&format!("{data}/cad/face_recognition_sample_part.stp")).unwrap();
+        models.push(("STEP part", PreparedNurbs::trimmed(part.nurbs(), &part.ranges(), &part.trims(), 6)));
+        for (name, density) in [("teapot", 8), ("spray", 4)] {
+            let m = hitex_io::models::load_model(name).unwrap();
+            models.push((name, PreparedNurbs::new(m.nurbs(), &m.ranges(), density)));
+        }
+        let (w, h) = (200, 150);
+        let mut drawn = 0;
+        for (name, mut p) in models {
+            for (mode, boundaries) in [
+                (NurbsMode::Shaded, false),
+                (NurbsMode::Isophote, false),
+                (NurbsMode::Normal, false),
+                (NurbsMode::Zebra, false),
+                (NurbsMode::Shaded, true),
+            ] {
+                (p.mode, p.boundaries) = (mode, boundaries);
+                for turn in [0.0f32, 2.3, 4.1] {
+                    let cam = p.camera.orbit(turn);
+                    let frame = p.frame(&cam, w, h);
+                    let mut lanes = raster::Target::new(w, h, [0, 0, 0, 0]);
+                    let program = nurbs::NurbsProgram::new(&frame, &p.packed);
+                    CpuRenderer::draw_nurbs(&mut lanes, &p, &cam, &frame, &program);
+                    let mut quads = raster::Target::new(w, h, [0, 0, 0, 0]);
+                    let program = InQuads(nurbs::NurbsProgram::new(&frame, &p.packed));
+                    CpuRenderer::draw_nurbs(&mut quads, &p, &cam, &frame, &program);
+                    let (a, b) = (lanes.into_rgba(), quads.into_rgba());
+                    let differ = a.chunks_exact(4).zip(b.chunks_exact(4)).filter(|(x, y)| x != y).count();
+                    assert_eq!(differ, 0, "{name}, {mode:?}, boundaries {boundaries}, turn {turn}: pixels differ");
+                    drawn += a.chunks_exact(4).filter(|c| c[3] != 0).count();
+                }
+            }
+        }
+        assert!(drawn > 4 * 5 * 3 * (w * h / 10) as usize, "only {drawn} pixels drawn to compare");
     }
 }

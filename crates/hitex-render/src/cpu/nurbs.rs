@@ -296,26 +296,42 @@ pub fn on_edge(t: &PackedNurbs, patch: usize, u: f32, v: f32, fu: f32, fv: f32) 
     best.1
 }
 
-/// fwidth of varying `j` for the four lanes of quad `quad` of a block.
-fn fwidth_quad(b: &Block<VARYINGS>, j: usize, quad: usize) -> [f32; 4] {
-    let (dx, dy) = grads_quad(b, j, quad);
-    std::array::from_fn(|i| dx[i].abs() + dy[i].abs())
-}
-
-/// Fine screen derivatives (d/dx, d/dy) of varying `j` on a quad's lanes
-/// (WGSL `dpdxFine`, `dpdyFine`).
-fn grads_quad(b: &Block<VARYINGS>, j: usize, quad: usize) -> ([f32; 4], [f32; 4]) {
-    let a: [f32; 4] = std::array::from_fn(|l| b.v[j][4 * quad + l]);
-    (super::textured::dpdx(a), super::textured::dpdy(a))
-}
-
 /// Screen derivatives of (u, v) at a fragment: `[∂u/∂x, ∂u/∂y, ∂v/∂x, ∂v/∂y]`.
 pub type UvGrad = [f32; 4];
 
-/// The (u, v) derivatives of every lane of a quad.
-fn uv_grads_quad(b: &Block<VARYINGS>, quad: usize) -> [UvGrad; 4] {
-    let ((ux, uy), (vx, vy)) = (grads_quad(b, 3, quad), grads_quad(b, 4, quad));
-    std::array::from_fn(|l| [ux[l], uy[l], vx[l], vy[l]])
+/// The (u, v) derivatives of a lane of a lane-packed block (the program's
+/// [`BlockShader::LANE_GRADS`] are u and v: WGSL `dpdxFine`, `dpdyFine` of its quad).
+#[inline(always)]
+fn lane_grad(b: &Block<VARYINGS>, lane: usize) -> UvGrad {
+    [b.grad[0][0][lane], b.grad[0][1][lane], b.grad[1][0][lane], b.grad[1][1][lane]]
+}
+
+/// A packed patch's degrees, control-point counts, knots and control points.
+struct PatchRef<'t> {
+    p: usize,
+    q: usize,
+    nu: usize,
+    nv: usize,
+    ku: &'t [f32],
+    kv: &'t [f32],
+    cp: &'t [[f32; 4]],
+}
+
+/// The rows of patch `patch` of the packed textures.
+#[inline(always)]
+fn patch_ref(t: &PackedNurbs, patch: usize) -> PatchRef<'_> {
+    let (kw, cw) = (t.knot_width as usize, t.cp_width as usize);
+    let head = t.control[patch * cw];
+    let (p, q, nu, nv) = (head[0] as usize, head[1] as usize, head[2] as usize, head[3] as usize);
+    PatchRef {
+        p,
+        q,
+        nu,
+        nv,
+        ku: &t.knots_u[patch * kw + 1..patch * kw + 1 + t.knots_u[patch * kw] as usize],
+        kv: &t.knots_v[patch * kw + 1..patch * kw + 1 + t.knots_v[patch * kw] as usize],
+        cp: &t.control[patch * cw + 1..patch * cw + 1 + nu * nv],
+    }
 }
 
 /// Distance of `x` to the nearest whole number (`floor(x + 0.5)`, as the shader).
@@ -676,14 +692,15 @@ impl<'a> NurbsProgram<'a> {
 }
 
 impl NurbsProgram<'_> {
-    /// The block path of the prepared bicubic kernel: all live lanes on one
-    /// patch of degree 3×3 within one pair of knot spans (the common case:
-    /// neighbouring pixels share spans), shaded, isophote or normal mode, no
-    /// overlay. The spans are found once and the knots and the 16 control
-    /// points broadcast; every lane then runs the same straight-line steps as
-    /// [`eval_packed`] and [`NurbsProgram::lane`], in the same order, so the
-    /// result is bit for bit the per-lane one. `None` when the block does not
-    /// qualify.
+    /// The block path of the prepared bicubic kernel: the live lanes on
+    /// patches of degree 3×3 (lanes on others take the per-lane program),
+    /// shaded, isophote or normal mode, no overlay. The lanes are grouped by
+    /// patch and knot-span pair (neighbouring pixels mostly share both), the
+    /// spans found once per patch and the knots and the 16 control points of
+    /// each group broadcast; every lane then runs the same straight-line steps
+    /// as [`eval_packed`] and [`NurbsProgram::lane`], in the same order, so
+    /// the result is bit for bit the per-lane one. `None` when the block does
+    /// not qualify.
     #[inline(always)]
     fn block_bicubic(&self, b: &Block<VARYINGS>, rgba: &mut [[u8; 4]; LANES], depth: &mut Lanes) -> Option<()> {
         let f = self.frame;
@@ -696,60 +713,93 @@ impl NurbsProgram<'_> {
         {
             return None;
         }
-        // one patch for every live lane
+        // the patch of every lane
         // (float operations only, which run as vector code; equal to the
         // per-lane program's `(round().max(0) as usize).min(last)`: patch
         // numbers are whole floats far below 2²⁴, NaN gives patch 0 in both)
-        let first = b.live.trailing_zeros() as usize;
         let last = t.patches.saturating_sub(1) as f32;
-        let of = |x: f32| x.round().max(0.0).min(last);
-        let pf = of(b.v[5][first]);
-        let mut other = 0u16;
-        for lane in 0..LANES {
-            other |= ((of(b.v[5][lane]) != pf) as u16) << lane;
+        let pf = simd::map(&b.v[5], |x| x.round().max(0.0).min(last));
+        // the lanes' parameters clamped into their patches' domains
+        let (mut u, mut v) = (b.v[3], b.v[4]);
+        // (patch, su, sv, lanes) of each group, in order of their first lanes
+        let mut groups = [(0usize, 0usize, 0usize, 0u16); LANES];
+        let mut count = 0;
+        // lanes on patches the kernel does not take; lanes past their
+        // domain or on a boundary fan; lanes on trimmed patches
+        let (mut other, mut outside, mut trimmed) = (0u16, 0u16, 0u16);
+        let shaded = mode == SHADED;
+        let mut albedo_of = [[0.0f32; LANES]; 3];
+        let mut rest = b.live;
+        while rest != 0 {
+            let first = rest.trailing_zeros() as usize;
+            let pfirst = pf[first];
+            let mut members = 0u16;
+            for lane in 0..LANES {
+                members |= ((pf[lane] == pfirst) as u16) << lane;
+            }
+            members &= rest;
+            rest &= !members;
+            let patch = pfirst as usize;
+            let pr = patch_ref(t, patch);
+            if pr.p != 3 || pr.q != 3 {
+                other |= members;
+                continue;
+            }
+            let (ku, kv, nu, nv) = (pr.ku, pr.kv, pr.nu, pr.nv);
+            let (u0, u1, v0, v1) = (ku[3], ku[nu], kv[3], kv[nv]);
+            let mut out = 0u16;
+            for lane in 0..LANES {
+                let (x, y) = (b.v[3][lane], b.v[4][lane]);
+                let o = (x < u0) | (x > u1) | (y < v0) | (y > v1) | is_fan(b.v[5][lane]);
+                out |= (o as u16) << lane;
+            }
+            outside |= out & members;
+            if t.trims[patch * t.trim_width as usize][0] as usize != 0 {
+                trimmed |= members;
+            }
+            let a = if shaded { albedo(t, patch) } else { Vec3::ZERO };
+            let mut m = members;
+            while m != 0 {
+                let lane = m.trailing_zeros() as usize;
+                m &= m - 1;
+                u[lane] = b.v[3][lane].max(u0).min(u1);
+                v[lane] = b.v[4][lane].max(v0).min(v1);
+                albedo_of[0][lane] = a.x;
+                albedo_of[1][lane] = a.y;
+                albedo_of[2][lane] = a.z;
+            }
+            let sg = span_groups(ku, kv, nu, nv, &u, &v, members)?;
+            for &(su, sv, lanes) in sg.iter() {
+                groups[count] = (patch, su, sv, lanes);
+                count += 1;
+            }
         }
-        if other & b.live != 0 {
-            return None;
-        }
-        let patch = pf as usize;
-        let (kw, cw) = (t.knot_width as usize, t.cp_width as usize);
-        let head = t.control[patch * cw];
-        let (p, q, nu, nv) = (head[0] as usize, head[1] as usize, head[2] as usize, head[3] as usize);
-        if p != 3 || q != 3 {
-            return None;
-        }
-        let cu = t.knots_u[patch * kw] as usize;
-        let cv = t.knots_v[patch * kw] as usize;
-        let ku = &t.knots_u[patch * kw + 1..patch * kw + 1 + cu];
-        let kv = &t.knots_v[patch * kw + 1..patch * kw + 1 + cv];
-        let cp = &t.control[patch * cw + 1..patch * cw + 1 + nu * nv];
-        // clamp into the domain (every lane: helpers too stay finite)
-        let (u0, u1, v0, v1) = (ku[3], ku[nu], kv[3], kv[nv]);
-        let u = simd::map(&b.v[3], |x| x.max(u0).min(u1));
-        let v = simd::map(&b.v[4], |x| x.max(v0).min(v1));
-        // the knot spans of the live lanes: a few groups, each found once
-        let groups = span_groups(ku, kv, nu, nv, &u, &v, b.live)?;
-        // the arithmetic, one register of lanes at a time, once per span group
+        // the arithmetic, one register of lanes at a time, once per group
         let light = Vec3::new(f.light[0], f.light[1], f.light[2]);
         let cam = Vec3::new(f.camera[0], f.camera[1], f.camera[2]);
         let mut o = BicubicOut::default();
-        // past four span pairs, a lane alone in its pair costs less on its
-        // own (the per-lane program, below) than a kernel run for it
+        let mut g = BicubicOut::default();
+        // past four groups, a lane alone in its group costs less on its own
+        // (the per-lane program, below) than a kernel run for it
         let mut solo = 0u16;
         let mut filled = false;
-        for &(su, sv, lanes) in groups.iter() {
-            if groups.len > 4 && lanes.count_ones() == 1 {
+        for &(patch, su, sv, lanes) in &groups[..count] {
+            if count > 4 && lanes.count_ones() == 1 {
                 solo |= lanes;
                 continue;
             }
+            let pr = patch_ref(t, patch);
+            let (ku, kv, cp, nu) = (pr.ku, pr.kv, pr.cp, pr.nu);
             if !filled {
                 simd::run(BicubicOp { su, sv, u: &u, v: &v, ku, kv, cp, nu, cam, light, m: &f.view_proj, out: &mut o });
                 filled = true;
                 continue;
             }
-            let mut g = BicubicOut::default();
             simd::run(BicubicOp { su, sv, u: &u, v: &v, ku, kv, cp, nu, cam, light, m: &f.view_proj, out: &mut g });
-            for lane in (0..LANES).filter(|l| lanes & (1 << l) != 0) {
+            let mut m = lanes;
+            while m != 0 {
+                let lane = m.trailing_zeros() as usize;
+                m &= m - 1;
                 for (dst, src) in [
                     (&mut o.nx, &g.nx),
                     (&mut o.ny, &g.ny),
@@ -767,8 +817,8 @@ impl NurbsProgram<'_> {
         }
         let n = V3 { x: o.nx, y: o.ny, z: o.nz };
         let (ndl, spec, d) = (o.ndl, o.spec, o.depth);
-        // degenerate normals and solo lanes take the per-lane program
-        let mut degenerate = solo;
+        // degenerate normals, solo lanes and lanes on other patches take the per-lane program
+        let mut degenerate = solo | other;
         for lane in 0..LANES {
             let ok = (o.len[lane] > 1e-6 * o.scale[lane] * o.scale[lane]) & (o.finite[lane] != 0.0);
             degenerate |= (!ok as u16) << lane;
@@ -780,14 +830,13 @@ impl NurbsProgram<'_> {
         match mode {
             SHADED => {
                 // Blinn–Phong, the same steps as `lane`
-                let albedo = albedo(t, patch);
                 let amb = f.ranges[2];
                 let mut lin = [[0.0f32; LANES]; 3];
                 for lane in 0..LANES {
                     let k = amb + ndl[lane];
-                    lin[0][lane] = albedo.x * k + spec[lane];
-                    lin[1][lane] = albedo.y * k + spec[lane];
-                    lin[2][lane] = albedo.z * k + spec[lane];
+                    lin[0][lane] = albedo_of[0][lane] * k + spec[lane];
+                    lin[1][lane] = albedo_of[1][lane] * k + spec[lane];
+                    lin[2][lane] = albedo_of[2][lane] * k + spec[lane];
                 }
                 let codes = simd::encode_rgb(hitex_core::texture::srgb_encoder(), &lin);
                 for lane in 0..LANES {
@@ -813,44 +862,30 @@ impl NurbsProgram<'_> {
         }
         depth.copy_from_slice(&d);
         // lanes cut away (past the domain or trimmed, beyond the seam reach)
-        // are discarded; seam lanes and degenerate normals take the per-lane path
-        let trimmed = t.trims[patch * t.trim_width as usize][0] as usize != 0;
-        // lanes past the domain or on a boundary fan, all 16 at once
-        let mut outside = 0u16;
-        for lane in 0..LANES {
-            let (x, y) = (b.v[3][lane], b.v[4][lane]);
-            let out = (x < u0) | (x > u1) | (y < v0) | (y > v1) | is_fan(b.v[5][lane]);
-            outside |= (out as u16) << lane;
-        }
-        for quad in 0..4 {
-            let base = 4 * quad;
-            let mask = (b.live >> base) & 0xf;
-            if mask == 0 {
+        // are discarded; seam lanes and the lanes above take the per-lane path
+        // (a lane within its domain on an untrimmed patch and off any fan is
+        // inside: it needs no test)
+        let mut special = (trimmed | outside | degenerate) & b.live;
+        while special != 0 {
+            let lane = special.trailing_zeros() as usize;
+            special &= special - 1;
+            let g = lane_grad(b, lane);
+            let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
+            if other & (1 << lane) != 0 {
+                (rgba[lane], depth[lane]) = self.lane(&v, &g);
                 continue;
             }
-            // only lanes past the domain, in trimmed patches or degenerate need fwidth
-            let (bu, bv) = (&b.v[3][base..base + 4], &b.v[4][base..base + 4]);
-            if !(trimmed || (outside >> base) & 0xf != 0 || (degenerate >> base) & 0xf != 0) {
-                continue;
+            let (fu, fv) = (g[0].abs() + g[1].abs(), g[2].abs() + g[3].abs());
+            let patch = pf[lane] as usize;
+            let mut at = reach(t, patch, v[3], v[4], fu, fv);
+            if at == Reach::Inside && is_fan(v[5]) {
+                at = Reach::Seam;
             }
-            let (fu, fv) = (fwidth_quad(b, 3, quad), fwidth_quad(b, 4, quad));
-            let g = uv_grads_quad(b, quad);
-            for l in 0..4 {
-                let lane = base + l;
-                if mask & (1 << l) == 0 {
-                    continue;
-                }
-                let mut at = reach(t, patch, bu[l], bv[l], fu[l], fv[l]);
-                if at == Reach::Inside && is_fan(b.v[5][lane]) {
-                    at = Reach::Seam;
-                }
-                if at == Reach::Cut {
-                    rgba[lane] = [0, 0, 0, 0];
-                    depth[lane] = f32::NAN;
-                } else if at == Reach::Seam || degenerate & (1 << lane) != 0 {
-                    let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
-                    (rgba[lane], depth[lane]) = self.lane(&v, &g[l]);
-                }
+            if at == Reach::Cut {
+                rgba[lane] = [0, 0, 0, 0];
+                depth[lane] = f32::NAN;
+            } else if at == Reach::Seam || degenerate & (1 << lane) != 0 {
+                (rgba[lane], depth[lane]) = self.lane(&v, &g);
             }
         }
         Some(())
@@ -1128,15 +1163,10 @@ pub fn eval_bicubic_block(t: &PackedNurbs, patch: usize, u: &Lanes, v: &Lanes) -
     if patch >= t.patches as usize {
         return None;
     }
-    let (kw, cw) = (t.knot_width as usize, t.cp_width as usize);
-    let head = t.control[patch * cw];
-    let (p, q, nu, nv) = (head[0] as usize, head[1] as usize, head[2] as usize, head[3] as usize);
+    let PatchRef { p, q, nu, nv, ku, kv, cp } = patch_ref(t, patch);
     if p != 3 || q != 3 {
         return None;
     }
-    let ku = &t.knots_u[patch * kw + 1..patch * kw + 1 + t.knots_u[patch * kw] as usize];
-    let kv = &t.knots_v[patch * kw + 1..patch * kw + 1 + t.knots_v[patch * kw] as usize];
-    let cp = &t.control[patch * cw + 1..patch * cw + 1 + nu * nv];
     let (u0, u1, v0, v1) = (ku[3], ku[nu], kv[3], kv[nv]);
     let u = simd::map(u, |x| x.max(u0).min(u1));
     let v = simd::map(v, |x| x.max(v0).min(v1));
@@ -1284,22 +1314,10 @@ impl pulp::WithSimd for BicubicOp<'_> {
 
 impl BlockShader<VARYINGS> for NurbsProgram<'_> {
     const WRITES_DEPTH: bool = true;
-
-    /// The patch and the knot spans of the triangle's first vertex: the
-    /// prepared kernels shade the lanes of one patch and one span pair at once.
-    #[inline(always)]
-    fn key(&self, v: &[f32; VARYINGS]) -> u32 {
-        let t = self.packed;
-        let patch = (v[5].round().max(0.0) as usize).min(t.patches.saturating_sub(1) as usize);
-        let (kw, cw) = (t.knot_width as usize, t.cp_width as usize);
-        let head = t.control[patch * cw];
-        let (p, q, nu, nv) = (head[0] as usize, head[1] as usize, head[2] as usize, head[3] as usize);
-        let ku = &t.knots_u[patch * kw + 1..patch * kw + 1 + t.knots_u[patch * kw] as usize];
-        let kv = &t.knots_v[patch * kw + 1..patch * kw + 1 + t.knots_v[patch * kw] as usize];
-        let su = find_span(nu - 1, p, v[3].max(ku[p]).min(ku[nu]), ku);
-        let sv = find_span(nv - 1, q, v[4].max(kv[q]).min(kv[nv]), kv);
-        ((patch as u32) << 16) ^ ((su as u32 & 0xff) << 8) ^ (sv as u32 & 0xff)
-    }
+    /// The program reads only the screen derivatives of u and v of a quad
+    /// (seam reach, overlays): its lanes are packed one by one, whatever
+    /// patch they lie on, and grouped by patch and knot spans when shaded.
+    const LANE_GRADS: Option<[usize; 2]> = Some([3, 4]);
 
     #[inline(always)]
     fn shade_block(&self, b: &Block<VARYINGS>, rgba: &mut [[u8; 4]; LANES], depth: &mut Lanes) {
@@ -1310,27 +1328,19 @@ impl BlockShader<VARYINGS> for NurbsProgram<'_> {
 
         // any degree, any mode: lane by lane
         let overlay = self.frame.params[3] & flag::BOUNDARIES != 0;
-        for quad in 0..4 {
-            let base = 4 * quad;
-            if (b.live >> base) & 0xf == 0 {
-                continue;
+        let mut live = b.live;
+        while live != 0 {
+            let lane = live.trailing_zeros() as usize;
+            live &= live - 1;
+            let g = lane_grad(b, lane);
+            let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
+            let (mut c, d) = self.lane(&v, &g);
+            // fwidth of u and v (the boundary overlay)
+            if overlay && self.on_boundary(&v, g[0].abs() + g[1].abs(), g[2].abs() + g[3].abs()) {
+                c = [20, 20, 24, 255];
             }
-            // fwidth of u and v from the quad's lanes (seam reach, boundary overlay)
-            let (fu, fv) = (fwidth_quad(b, 3, quad), fwidth_quad(b, 4, quad));
-            let g = uv_grads_quad(b, quad);
-            // helper lanes only feed the derivatives above: their colour is never computed
-            for l in 0..4 {
-                let lane = base + l;
-                if b.live & (1 << lane) != 0 {
-                    let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
-                    let (mut c, d) = self.lane(&v, &g[l]);
-                    if overlay && self.on_boundary(&v, fu[l], fv[l]) {
-                        c = [20, 20, 24, 255];
-                    }
-                    rgba[lane] = c;
-                    depth[lane] = d;
-                }
-            }
+            rgba[lane] = c;
+            depth[lane] = d;
         }
     }
 }
@@ -1547,11 +1557,19 @@ mod tests {
     }
 
     /// The block path and the per-lane path give the same bits: colour and
-    /// depth of every lane, in the three modes the block path takes.
+    /// depth of every lane, in the three modes the block path takes, with
+    /// the lanes of a block on one patch or on two.
     #[test]
     fn block_bicubic_equals_the_per_lane_program_bit_for_bit() {
         let s = bicubic_6x5();
-        let prepared = crate::nurbs::PreparedNurbs::new(vec![s.clone()], &[s.domain()], 4);
+        // a second patch: the first moved and bent
+        let mut net = net_6x5();
+        for (i, p) in net.iter_mut().enumerate() {
+            p[0] += 0.3;
+            p[2] += 0.1 * (i % 3) as f64 * p[3];
+        }
+        let s2 = NurbsSurface::new(3, 3, 6, 5, s.knots_u.clone(), s.knots_v.clone(), net).unwrap();
+        let prepared = crate::nurbs::PreparedNurbs::new(vec![s.clone(), s2.clone()], &[s.domain(), s2.domain()], 4);
         let cam = hitex_core::scene::Camera::new(
             Vec3::new(2.5, -6.0, 5.0),
             Vec3::new(2.5, 2.0, 0.0),
@@ -1561,7 +1579,7 @@ mod tests {
             100.0,
         )
         .unwrap();
-        let (mut checked, mut many_spans) = (0, 0);
+        let (mut checked, mut many_spans, mut mixed) = (0, 0, 0);
         for mode in [SHADED, ISOPHOTE, NORMAL] {
             let mut frame = prepared.frame(&cam, 64, 48);
             frame.params[0] = mode;
@@ -1585,6 +1603,7 @@ mod tests {
                     w: [1.0; LANES],
                     z: [0.5; LANES],
                     live: 0xffff ^ (1 << (k % 16)),
+                    grad: [[[0.0; LANES]; 2]; 2],
                 };
                 for lane in 0..LANES {
                     b.v[2][lane] = 1.0;
@@ -1595,7 +1614,15 @@ mod tests {
                         b.v[3][lane] = su + 0.002 * (lane % 2) as f32;
                         b.v[4][lane] = sv + 0.002 * (lane / 2 % 2) as f32;
                     }
+                    // every third block: the second patch on some quads
+                    if k % 3 == 1 && (lane / 4 + k / 3) % 2 == 1 {
+                        b.v[5][lane] = 1.0;
+                    }
                 }
+                if k % 3 == 1 {
+                    mixed += 1;
+                }
+                b.fill_grads([3, 4]);
                 if k >= 200 {
                     // patch 0: its header and knots lead the packed rows
                     let t = &prepared.packed;
@@ -1617,13 +1644,14 @@ mod tests {
                         continue;
                     }
                     let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
-                    let (c, d) = prog.lane(&v, &uv_grads_quad(&b, lane / 4)[lane % 4]);
+                    let (c, d) = prog.lane(&v, &lane_grad(&b, lane));
                     assert_eq!(rgba[lane], c, "mode {mode} block {k} lane {lane}");
                     assert_eq!(depth[lane].to_bits(), d.to_bits(), "mode {mode} block {k} lane {lane}");
                 }
             }
         }
         assert!(checked > 3 * 250, "the block path took only {checked} blocks");
+        assert!(mixed > 80, "only {mixed} blocks over two patches");
         assert!(many_spans >= 9, "only {many_spans} blocks over more than four span pairs");
     }
 

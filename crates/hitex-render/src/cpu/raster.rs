@@ -20,9 +20,12 @@
 //! * batching: covered quads of consecutive triangles with the same material
 //!   and program key are packed four to a [`Block`], one call of the fragment
 //!   program, so that small triangles (a tessellated NURBS patch) still fill
-//!   16 lanes; colours and depths are written, and depth tested, in
-//!   submission order when the block is shaded: the image is that of
-//!   shading each triangle at once.
+//!   16 lanes; a program that needs no more of a quad than the screen
+//!   derivatives of two varyings ([`BlockShader::LANE_GRADS`]) gets its
+//!   covered lanes packed one by one instead, sixteen to a block, each with
+//!   those derivatives taken from its own quad; colours and depths are
+//!   written, and depth tested, in submission order when the block is
+//!   shaded: the image is that of shading each triangle at once.
 
 // lane loops index several arrays by the same lane, as the lane code reads
 #![allow(clippy::needless_range_loop)]
@@ -73,12 +76,19 @@ pub trait QuadShader<const K: usize>: Sync {
 /// ([`BlockShader::key`]) but may come from different triangles and places
 /// (small triangles are packed together); quad slots past the last filled
 /// one have no live lane.
+///
+/// For a program that packs lanes ([`BlockShader::LANE_GRADS`]) the lanes
+/// are instead single covered fragments of any triangles, in submission
+/// order, the live ones first; their quads' derivatives come in [`Block::grad`].
+#[derive(Clone)]
 pub struct Block<const K: usize> {
     /// Material of the triangle.
     pub material: usize,
-    /// Pixel column of the first quad's lane 0 (even).
+    /// Pixel column of the first quad's lane 0 (even; of a lane-packed
+    /// block, of its first lane).
     pub x: u32,
-    /// Pixel row of the first quad's lane 0 (even).
+    /// Pixel row of the first quad's lane 0 (even; of a lane-packed block,
+    /// of its first lane).
     pub y: u32,
     /// Perspective-correct varyings: `v[j][lane]`.
     pub v: [Lanes; K],
@@ -90,6 +100,39 @@ pub struct Block<const K: usize> {
     /// others are helpers feeding derivatives; their colour may be left
     /// uncomputed).
     pub live: u16,
+    /// Fine screen derivatives of the varyings named by
+    /// [`BlockShader::LANE_GRADS`], per lane: `grad[g][0]` along x (WGSL
+    /// `dpdxFine`) and `grad[g][1]` along y (`dpdyFine`) of varying
+    /// `LANE_GRADS[g]`, from the lane's own quad as the quad layout above would
+    /// give them (the same bits). Filled for lane-packing programs only.
+    pub grad: [[Lanes; 2]; 2],
+}
+
+impl<const K: usize> Block<K> {
+    /// Fills [`Block::grad`] for varyings `js` from the block's quads (the
+    /// layout of a block that is not lane-packed).
+    pub fn fill_grads(&mut self, js: [usize; 2]) {
+        for g in 0..2 {
+            self.grad[g] = quad_grads(&self.v[js[g]]);
+        }
+    }
+}
+
+/// Fine screen derivatives (d/dx, d/dy) of a lane value over a block's four
+/// quads (WGSL `dpdxFine`, `dpdyFine`): within each quad, x differences of
+/// its rows and y differences of its columns.
+#[inline(always)]
+fn quad_grads(a: &Lanes) -> [Lanes; 2] {
+    let mut dx = [0.0f32; LANES];
+    let mut dy = [0.0f32; LANES];
+    for q in 0..LANES / 4 {
+        let b = 4 * q;
+        let (top, bottom) = (a[b + 1] - a[b], a[b + 3] - a[b + 2]);
+        let (left, right) = (a[b + 2] - a[b], a[b + 3] - a[b + 1]);
+        dx[b..b + 4].copy_from_slice(&[top, top, bottom, bottom]);
+        dy[b..b + 4].copy_from_slice(&[left, right, left, right]);
+    }
+    [dx, dy]
 }
 
 /// A fragment program shading a [`Block`] of 16 lanes. Every [`QuadShader`]
@@ -124,6 +167,14 @@ pub trait BlockShader<const K: usize>: Sync {
     fn packs_triangles(&self) -> bool {
         true
     }
+    /// For a program that reads nothing of a quad but the screen
+    /// derivatives of (at most) two varyings: their indices. The rasterizer
+    /// then packs covered lanes one by one, sixteen to a block whatever
+    /// quads they come from (no helper lanes), and hands each lane those
+    /// derivatives from its own quad in [`Block::grad`] (the same bits the
+    /// quad would give). Tessellated surfaces, whose triangles leave quads
+    /// two-thirds empty, fill their blocks this way.
+    const LANE_GRADS: Option<[usize; 2]> = None;
 }
 
 impl<const K: usize, S: QuadShader<K>> BlockShader<K> for S {
@@ -707,13 +758,16 @@ impl Hiz {
 /// own four lanes (helpers included), so derivatives are unchanged; colours
 /// and depths are written in submission order when the block is shaded, and
 /// the depth test is made then, so the image is that of shading each
-/// triangle's quads at once.
+/// triangle's quads at once. For a lane-packing program
+/// ([`BlockShader::LANE_GRADS`]) up to sixteen covered lanes wait instead.
 struct Batch<const K: usize> {
     block: Block<K>,
     /// Pixel index within the band of each lane (read for live lanes only).
     pixel: [u32; LANES],
-    /// Quads filled.
-    quads: usize,
+    /// The 8×2 depth-bound cell of each lane's pixel, `(row << 16) | column`.
+    cell: [u32; LANES],
+    /// Lane slots filled (four a quad).
+    used: usize,
     /// Material and key of the quads.
     key: (usize, u32),
     rgba: [[u8; 4]; LANES],
@@ -723,25 +777,35 @@ struct Batch<const K: usize> {
 impl<const K: usize> Batch<K> {
     fn new() -> Self {
         Self {
-            block: Block { material: 0, x: 0, y: 0, v: [[0.0; LANES]; K], w: [1.0; LANES], z: [0.0; LANES], live: 0 },
+            block: Block {
+                material: 0,
+                x: 0,
+                y: 0,
+                v: [[0.0; LANES]; K],
+                w: [1.0; LANES],
+                z: [0.0; LANES],
+                live: 0,
+                grad: [[[0.0; LANES]; 2]; 2],
+            },
             pixel: [0; LANES],
-            quads: 0,
+            cell: [0; LANES],
+            used: 0,
             key: (0, 0),
             rgba: [[0; 4]; LANES],
             zout: [0.0; LANES],
         }
     }
 
-    /// Shades the waiting quads and writes the lanes that pass the depth test.
+    /// Shades the waiting lanes and writes those that pass the depth test.
     #[inline(always)]
     fn flush<S: BlockShader<K>>(&mut self, out: &mut Out<'_, S>) {
-        if self.quads == 0 {
+        if self.used == 0 {
             return;
         }
         let b = &self.block;
         out.shader.shade_block(b, &mut self.rgba, &mut self.zout);
-        let mut written = 0u8;
-        for lane in 0..4 * self.quads {
+        let mut written = 0u16;
+        for lane in 0..self.used {
             if b.live & (1 << lane) == 0 {
                 continue;
             }
@@ -752,26 +816,22 @@ impl<const K: usize> Batch<K> {
             if pass {
                 out.depth[i] = d;
                 out.color[i] = self.rgba[lane];
-                written |= 1 << (lane / 4);
+                written |= 1 << lane;
             }
         }
-        // the cells under the quads written
+        // the cells under the lanes written (consecutive lanes mostly share theirs)
         if !out.hiz.max.is_empty() {
-            let mut last = usize::MAX;
-            for quad in 0..self.quads {
-                if written & (1 << quad) != 0 {
-                    let i = self.pixel[4 * quad] as usize;
-                    let (x, y) = (i % out.hiz.width, i / out.hiz.width);
-                    let cell = (y / 2) * out.hiz.cells_w + x / 8;
-                    // a block's quads mostly share their cell
-                    if cell != last {
-                        out.hiz.refresh(out.depth, x / 8, y / 2);
-                        last = cell;
-                    }
+            let mut last = u32::MAX;
+            while written != 0 {
+                let cell = self.cell[written.trailing_zeros() as usize];
+                written &= written - 1;
+                if cell != last {
+                    out.hiz.refresh(out.depth, (cell & 0xffff) as usize, (cell >> 16) as usize);
+                    last = cell;
                 }
             }
         }
-        self.quads = 0;
+        self.used = 0;
         self.block.live = 0;
     }
 }
@@ -981,11 +1041,19 @@ fn raster_block<const K: usize, S: BlockShader<K>, Sm: pulp::Simd>(
         }
     }
     let key = (t.material, t.key);
+    // the depth-bound cell of a lane's pixel
+    let cell = |lane: usize| -> u32 {
+        let (lx, ly) = (qx + lane_dx(lane) as u32, qy + lane_dy(lane) as u32 - y_band);
+        ((ly / 2) << 16) | (lx / 8)
+    };
     // every quad covered (large triangles): the block is shaded as it is
-    if (0..4).all(|quad| (mask >> (4 * quad)) & 0xf != 0) {
+    if mask == 0xffff || (S::LANE_GRADS.is_none() && (0..4).all(|quad| (mask >> (4 * quad)) & 0xf != 0)) {
         batch.flush(out);
         let b = &mut batch.block;
         interpolate(simd, t, &l1, &l2, &w, &mut b.v);
+        if let Some(js) = S::LANE_GRADS {
+            b.fill_grads(js);
+        }
         b.w = w;
         b.z = z;
         b.live = mask;
@@ -993,24 +1061,63 @@ fn raster_block<const K: usize, S: BlockShader<K>, Sm: pulp::Simd>(
         (b.x, b.y) = (qx, qy);
         for lane in 0..LANES {
             batch.pixel[lane] = index(lane) as u32;
+            batch.cell[lane] = cell(lane);
         }
         batch.key = key;
-        batch.quads = 4;
+        batch.used = LANES;
         batch.flush(out);
         return;
     }
     let mut v = [[0.0f32; LANES]; K];
     interpolate(simd, t, &l1, &l2, &w, &mut v);
+    if let Some(js) = S::LANE_GRADS {
+        // the covered lanes join the batch one by one, in order, each with
+        // the derivatives of its quad
+        let grad = [quad_grads(&v[js[0]]), quad_grads(&v[js[1]])];
+        if batch.used > 0 && batch.key != key {
+            batch.flush(out);
+        }
+        let mut rest = mask;
+        while rest != 0 {
+            let lane = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            if batch.used == LANES {
+                batch.flush(out);
+            }
+            let n = batch.used;
+            let b = &mut batch.block;
+            for j in 0..K {
+                b.v[j][n] = v[j][lane];
+            }
+            for g in 0..2 {
+                b.grad[g][0][n] = grad[g][0][lane];
+                b.grad[g][1][n] = grad[g][1][lane];
+            }
+            b.w[n] = w[lane];
+            b.z[n] = z[lane];
+            b.live |= 1 << n;
+            b.material = t.material;
+            if n == 0 {
+                b.x = qx + lane_dx(lane) as u32;
+                b.y = qy + lane_dy(lane) as u32;
+            }
+            batch.pixel[n] = index(lane) as u32;
+            batch.cell[n] = cell(lane);
+            batch.key = key;
+            batch.used += 1;
+        }
+        return;
+    }
     // the covered quads join the batch, in order
     for quad in 0..4 {
         let live = (mask >> (4 * quad)) & 0xf;
         if live == 0 {
             continue;
         }
-        if batch.quads == 4 || (batch.quads > 0 && batch.key != key) {
+        if batch.used == LANES || (batch.used > 0 && batch.key != key) {
             batch.flush(out);
         }
-        let (src, dst) = (4 * quad, 4 * batch.quads);
+        let (src, dst) = (4 * quad, batch.used);
         let b = &mut batch.block;
         for j in 0..K {
             b.v[j][dst..dst + 4].copy_from_slice(&v[j][src..src + 4]);
@@ -1019,15 +1126,16 @@ fn raster_block<const K: usize, S: BlockShader<K>, Sm: pulp::Simd>(
         b.z[dst..dst + 4].copy_from_slice(&z[src..src + 4]);
         for l in 0..4 {
             batch.pixel[dst + l] = index(src + l) as u32;
+            batch.cell[dst + l] = cell(src + l);
         }
         b.live |= live << dst;
         b.material = t.material;
-        if batch.quads == 0 {
+        if dst == 0 {
             b.x = qx + 2 * quad as u32;
             b.y = qy;
         }
         batch.key = key;
-        batch.quads += 1;
+        batch.used += 4;
     }
 }
 
@@ -1172,18 +1280,21 @@ mod tests {
     }
 
     /// Colours a lane by its triangle's id (varying 0) and, when it writes
-    /// depth, moves it by varying 1; counts the blocks and quads it shades
-    /// and whether a block mixed keys.
-    struct Ids<const DEPTH: bool, const PACK: bool> {
+    /// depth, moves it by varying 1; counts the blocks, quads and lanes it
+    /// shades and whether a block mixed keys. `LP`: it packs lanes.
+    struct Ids<const DEPTH: bool, const PACK: bool, const LP: bool> {
         blocks: std::sync::atomic::AtomicUsize,
         quads: std::sync::atomic::AtomicUsize,
+        lanes: std::sync::atomic::AtomicUsize,
         mixed: std::sync::atomic::AtomicBool,
     }
-    impl<const DEPTH: bool, const PACK: bool> BlockShader<2> for Ids<DEPTH, PACK> {
+    impl<const DEPTH: bool, const PACK: bool, const LP: bool> BlockShader<2> for Ids<DEPTH, PACK, LP> {
         const WRITES_DEPTH: bool = DEPTH;
+        const LANE_GRADS: Option<[usize; 2]> = if LP { Some([0, 1]) } else { None };
         fn shade_block(&self, b: &Block<2>, rgba: &mut [[u8; 4]; LANES], depth: &mut Lanes) {
             use std::sync::atomic::Ordering::Relaxed;
             self.blocks.fetch_add(1, Relaxed);
+            self.lanes.fetch_add(b.live.count_ones() as usize, Relaxed);
             let mut key = None;
             for lane in 0..LANES {
                 if b.live & (1 << lane) != 0 {
@@ -1229,10 +1340,11 @@ mod tests {
         (pos, vary, idx)
     }
 
-    fn batching_matches_drawing_one_by_one<const DEPTH: bool, const PACK: bool>() {
+    fn batching_matches_drawing_one_by_one<const DEPTH: bool, const PACK: bool, const LP: bool>() {
         let (pos, vary, idx) = confetti(400);
         let (w, h) = (61, 47);
-        let program = || Ids::<DEPTH, PACK> { blocks: 0.into(), quads: 0.into(), mixed: false.into() };
+        let program =
+            || Ids::<DEPTH, PACK, LP> { blocks: 0.into(), quads: 0.into(), lanes: 0.into(), mixed: false.into() };
         // all at once: quads of several triangles share blocks
         let mut all = Target::new(w, h, [0, 0, 0, 0]);
         let draws = [Draw { first_index: 0, index_count: idx.len() as u32, material: 0 }];
@@ -1245,27 +1357,88 @@ mod tests {
             let d = [Draw { first_index: 3 * t as u32, index_count: 3, material: 0 }];
             rasterize(&mut one, Mat4::IDENTITY, &pos, &vary, &idx, &d, &q);
         }
-        assert!(all.color == one.color, "colours differ (writes depth: {DEPTH})");
+        assert!(all.color == one.color, "colours differ (writes depth: {DEPTH}, lanes packed: {LP})");
         assert!(all.depth.iter().zip(&one.depth).all(|(a, b)| a.to_bits() == b.to_bits()));
         use std::sync::atomic::Ordering::Relaxed;
-        let (blocks, quads) = (p.blocks.load(Relaxed), p.quads.load(Relaxed));
-        // quads waiting in a batch have not yet written depth, so the early
+        let (blocks, quads, lanes) = (p.blocks.load(Relaxed), p.quads.load(Relaxed), p.lanes.load(Relaxed));
+        // lanes waiting in a batch have not yet written depth, so the early
         // test may pass a few more; never fewer
-        let alone = q.quads.load(Relaxed);
+        let (alone, alone_lanes) = (q.quads.load(Relaxed), q.lanes.load(Relaxed));
+        assert!(!p.mixed.load(Relaxed), "a block mixed program keys");
         if !PACK {
-            // a program that records what it shades sees exactly the sequential quads
-            assert_eq!(quads, alone, "quads shaded without packing");
-            assert!(!p.mixed.load(Relaxed));
+            // a program that records what it shades sees exactly the sequential lanes
+            assert_eq!(lanes, alone_lanes, "lanes shaded without packing");
+            if !LP {
+                assert_eq!(quads, alone, "quads shaded without packing");
+            }
             return;
         }
-        assert!(quads >= alone && quads <= alone + alone / 20, "{quads} quads shaded packed, {alone} one by one");
-        let alone_blocks = q.blocks.load(Relaxed);
         assert!(
-            quads >= 3 * blocks && blocks * 4 < alone_blocks * 3,
-            "quads were not packed: {blocks} blocks for {quads} quads ({alone_blocks} blocks one by one)"
+            lanes >= alone_lanes && lanes <= alone_lanes + alone_lanes / 20,
+            "{lanes} lanes shaded packed, {alone_lanes} one by one"
         );
-        assert!(!p.mixed.load(Relaxed), "a block mixed program keys");
+        let alone_blocks = q.blocks.load(Relaxed);
+        if LP {
+            // sixteen lanes a block but where the key changes or a band ends
+            assert!(
+                lanes >= 10 * blocks && blocks * 2 < alone_blocks,
+                "lanes were not packed: {blocks} blocks for {lanes} lanes ({alone_blocks} blocks one by one)"
+            );
+        } else {
+            assert!(quads >= alone && quads <= alone + alone / 20, "{quads} quads shaded packed, {alone} one by one");
+            assert!(
+                quads >= 3 * blocks && blocks * 4 < alone_blocks * 3,
+                "quads were not packed: {blocks} blocks for {quads} quads ({alone_blocks} blocks one by one)"
+            );
+        }
         assert!(all.color.iter().filter(|c| c[2] == 7).count() > (w * h / 4) as usize, "too little drawn to compare");
+    }
+
+    /// Colours a lane by the screen derivatives of its two varyings: taken
+    /// from [`Block::grad`] when it packs lanes (`LP`), else from its quad.
+    struct Grads<const LP: bool>;
+    impl<const LP: bool> BlockShader<2> for Grads<LP> {
+        const LANE_GRADS: Option<[usize; 2]> = if LP { Some([1, 0]) } else { None };
+        fn shade_block(&self, b: &Block<2>, rgba: &mut [[u8; 4]; LANES], _: &mut Lanes) {
+            let mut own = b.clone();
+            if !LP {
+                own.fill_grads([1, 0]);
+            }
+            let g = &own.grad;
+            for lane in 0..LANES {
+                let h = g[0][0][lane].to_bits() ^ g[0][1][lane].to_bits().rotate_left(8);
+                let h = h ^ g[1][0][lane].to_bits().rotate_left(16) ^ g[1][1][lane].to_bits().rotate_left(24);
+                rgba[lane] = [h as u8, (h >> 8) as u8, (h >> 16) as u8 | 1, (h >> 24) as u8 | 1];
+            }
+        }
+    }
+
+    #[test]
+    fn packed_lanes_carry_the_derivatives_of_their_quads() {
+        let (mut pos, mut vary, idx) = confetti(300);
+        // varyings that change across a triangle, non-linearly over the frame
+        for (a, p) in vary.iter_mut().zip(&mut pos) {
+            *a = [a[0] + 5.0 * p.x * p.y, 3.0 * p.y + p.x * p.x];
+            // in front of the camera below, at distances 1 to 3
+            *p = Vec3::new(p.x, p.y, -1.0 - 2.5 * p.z - 0.3 * p.x);
+        }
+        // a perspective view (as in the early-depth test), so that the
+        // derivatives change within a triangle
+        let r = FAR / (NEAR - FAR);
+        let view_proj = Mat4::from_cols(
+            Vec4::new(1.1, 0.0, 0.0, 0.0),
+            Vec4::new(0.0, 1.4, 0.0, 0.0),
+            Vec4::new(0.0, 0.0, r, -1.0),
+            Vec4::new(0.0, 0.0, r * NEAR, 0.0),
+        );
+        let draws = [Draw { first_index: 0, index_count: idx.len() as u32, material: 0 }];
+        let mut quads = Target::new(64, 53, [0, 0, 0, 0]);
+        rasterize(&mut quads, view_proj, &pos, &vary, &idx, &draws, &Grads::<false>);
+        let mut lanes = Target::new(64, 53, [0, 0, 0, 0]);
+        rasterize(&mut lanes, view_proj, &pos, &vary, &idx, &draws, &Grads::<true>);
+        assert!(quads.color == lanes.color, "lane-packed derivatives differ from their quads'");
+        let drawn: std::collections::HashSet<[u8; 4]> = quads.color.iter().filter(|c| c[3] != 0).copied().collect();
+        assert!(drawn.len() > 500, "only {} distinct derivatives drawn", drawn.len());
     }
 
     /// A program that writes depth up to `MARGIN` nearer than its triangle
@@ -1347,10 +1520,18 @@ mod tests {
 
     #[test]
     fn packed_quads_draw_as_triangles_one_by_one() {
-        batching_matches_drawing_one_by_one::<false, true>();
-        batching_matches_drawing_one_by_one::<true, true>();
-        batching_matches_drawing_one_by_one::<false, false>();
-        batching_matches_drawing_one_by_one::<true, false>();
+        batching_matches_drawing_one_by_one::<false, true, false>();
+        batching_matches_drawing_one_by_one::<true, true, false>();
+        batching_matches_drawing_one_by_one::<false, false, false>();
+        batching_matches_drawing_one_by_one::<true, false, false>();
+    }
+
+    #[test]
+    fn packed_lanes_draw_as_triangles_one_by_one() {
+        batching_matches_drawing_one_by_one::<false, true, true>();
+        batching_matches_drawing_one_by_one::<true, true, true>();
+        batching_matches_drawing_one_by_one::<false, false, true>();
+        batching_matches_drawing_one_by_one::<true, false, true>();
     }
 
     #[test]
