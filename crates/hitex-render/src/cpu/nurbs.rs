@@ -721,7 +721,8 @@ impl NurbsProgram<'_> {
         let pf = simd::map(&b.v[5], |x| x.round().max(0.0).min(last));
         // the lanes' parameters clamped into their patches' domains
         let (mut u, mut v) = (b.v[3], b.v[4]);
-        // (patch, su, sv, lanes) of each group, in order of their first lanes
+        // (patch, su, sv, lanes) of each group: patches in order of their
+        // first lanes, a patch's span pairs likewise
         let mut groups = [(0usize, 0usize, 0usize, 0u16); LANES];
         let mut count = 0;
         // lanes on patches the kernel does not take; lanes past their
@@ -1558,18 +1559,35 @@ mod tests {
 
     /// The block path and the per-lane path give the same bits: colour and
     /// depth of every lane, in the three modes the block path takes, with
-    /// the lanes of a block on one patch or on two.
+    /// the lanes of a block on one patch, on two bicubic patches of
+    /// different domains (one trimmed), or on a bicubic and a quartic one.
     #[test]
     fn block_bicubic_equals_the_per_lane_program_bit_for_bit() {
         let s = bicubic_6x5();
-        // a second patch: the first moved and bent
+        // a second patch: the first moved and bent, over a smaller domain
         let mut net = net_6x5();
         for (i, p) in net.iter_mut().enumerate() {
             p[0] += 0.3;
             p[2] += 0.1 * (i % 3) as f64 * p[3];
         }
-        let s2 = NurbsSurface::new(3, 3, 6, 5, s.knots_u.clone(), s.knots_v.clone(), net).unwrap();
-        let prepared = crate::nurbs::PreparedNurbs::new(vec![s.clone(), s2.clone()], &[s.domain(), s2.domain()], 4);
+        let ku2 = vec![0.1, 0.1, 0.1, 0.1, 0.35, 0.6, 0.9, 0.9, 0.9, 0.9];
+        let kv2 = vec![0.05, 0.05, 0.05, 0.05, 0.5, 0.95, 0.95, 0.95, 0.95];
+        let s2 = NurbsSurface::new(3, 3, 6, 5, ku2, kv2, net.clone()).unwrap();
+        // a third, quartic in u: the per-lane program's
+        let ku3 = vec![0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 1.0, 1.0, 1.0, 1.0, 1.0];
+        let s3 = NurbsSurface::new(4, 3, 6, 5, ku3, s.knots_v.clone(), net).unwrap();
+        let ranges = [s.domain(), s2.domain(), s3.domain()];
+        let mut prepared = crate::nurbs::PreparedNurbs::new(vec![s.clone(), s2, s3], &ranges, 4);
+        // the second trimmed: a hole of radius 0.2 at (0.5, 0.5)
+        let circle: Vec<[f64; 2]> = (0..=48)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / 48.0;
+                [0.5 + 0.2 * a.cos(), 0.5 + 0.2 * a.sin()]
+            })
+            .collect();
+        let outer = vec![[0.1, 0.05], [0.9, 0.05], [0.9, 0.95], [0.1, 0.95], [0.1, 0.05]];
+        prepared.set_trims(&[vec![], vec![outer, circle], vec![]]);
+        assert_eq!(prepared.packed.control[2 * prepared.packed.cp_width as usize][0], 4.0, "the quartic is kept");
         let cam = hitex_core::scene::Camera::new(
             Vec3::new(2.5, -6.0, 5.0),
             Vec3::new(2.5, 2.0, 0.0),
@@ -1579,7 +1597,7 @@ mod tests {
             100.0,
         )
         .unwrap();
-        let (mut checked, mut many_spans, mut mixed) = (0, 0, 0);
+        let (mut checked, mut many_spans, mut mixed, mut cut, mut quartic) = (0, 0, 0, 0, 0);
         for mode in [SHADED, ISOPHOTE, NORMAL] {
             let mut frame = prepared.frame(&cam, 64, 48);
             frame.params[0] = mode;
@@ -1614,12 +1632,12 @@ mod tests {
                         b.v[3][lane] = su + 0.002 * (lane % 2) as f32;
                         b.v[4][lane] = sv + 0.002 * (lane / 2 % 2) as f32;
                     }
-                    // every third block: the second patch on some quads
-                    if k % 3 == 1 && (lane / 4 + k / 3) % 2 == 1 {
-                        b.v[5][lane] = 1.0;
+                    // two blocks in three: the second or the third patch on some quads
+                    if k % 3 != 0 && (lane / 4 + k / 3) % 2 == 1 {
+                        b.v[5][lane] = (k % 3) as f32;
                     }
                 }
-                if k % 3 == 1 {
+                if k % 3 != 0 {
                     mixed += 1;
                 }
                 b.fill_grads([3, 4]);
@@ -1645,13 +1663,16 @@ mod tests {
                     }
                     let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
                     let (c, d) = prog.lane(&v, &lane_grad(&b, lane));
+                    cut += d.is_nan() as usize;
+                    quartic += (v[5] == 2.0) as usize;
                     assert_eq!(rgba[lane], c, "mode {mode} block {k} lane {lane}");
                     assert_eq!(depth[lane].to_bits(), d.to_bits(), "mode {mode} block {k} lane {lane}");
                 }
             }
         }
         assert!(checked > 3 * 250, "the block path took only {checked} blocks");
-        assert!(mixed > 80, "only {mixed} blocks over two patches");
+        assert!(mixed > 160, "only {mixed} blocks over two patches");
+        assert!(cut > 100 && quartic > 500, "{cut} lanes cut away, {quartic} on the quartic patch");
         assert!(many_spans >= 9, "only {many_spans} blocks over more than four span pairs");
     }
 

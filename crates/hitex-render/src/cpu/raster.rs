@@ -1040,6 +1040,11 @@ fn raster_block<const K: usize, S: BlockShader<K>, Sm: pulp::Simd>(
             return;
         }
     }
+    const {
+        if let Some(js) = S::LANE_GRADS {
+            assert!(js[0] < K && js[1] < K, "LANE_GRADS names a varying the program does not have");
+        }
+    }
     let key = (t.material, t.key);
     // the depth-bound cell of a lane's pixel
     let cell = |lane: usize| -> u32 {
@@ -1445,14 +1450,15 @@ mod tests {
     /// (varying 1), as the NURBS program's exact point may lie: the early
     /// depth test, lane by lane and block by block, must cull only what the
     /// late test would reject.
-    struct Nearer {
+    struct Nearer<const LP: bool> {
         quads: std::sync::atomic::AtomicUsize,
     }
     const NEAR: f32 = 0.5;
     const FAR: f32 = 50.0;
     const MARGIN: f32 = 0.4;
-    impl BlockShader<2> for Nearer {
+    impl<const LP: bool> BlockShader<2> for Nearer<LP> {
         const WRITES_DEPTH: bool = true;
+        const LANE_GRADS: Option<[usize; 2]> = if LP { Some([0, 1]) } else { None };
         fn shade_block(&self, b: &Block<2>, rgba: &mut [[u8; 4]; LANES], depth: &mut Lanes) {
             let r = FAR / (NEAR - FAR);
             for lane in 0..LANES {
@@ -1462,14 +1468,23 @@ mod tests {
                     depth[lane] = r * (NEAR / (b.w[lane] - b.v[1][lane]) - 1.0);
                 }
             }
-            for q in 0..4 {
-                self.quads.fetch_add(((b.live >> (4 * q)) & 0xf != 0) as usize, std::sync::atomic::Ordering::Relaxed);
-            }
+            // lanes, for a program that packs them
+            let n = if LP {
+                b.live.count_ones() as usize
+            } else {
+                (0..4).filter(|q| (b.live >> (4 * q)) & 0xf != 0).count()
+            };
+            self.quads.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
         }
     }
 
     #[test]
     fn early_depth_culls_only_what_the_late_test_rejects() {
+        early_depth_culls_only_what_the_late_test_rejects_for::<false>();
+        early_depth_culls_only_what_the_late_test_rejects_for::<true>();
+    }
+
+    fn early_depth_culls_only_what_the_late_test_rejects_for<const LP: bool>() {
         // a near wall over the left half, then small triangles at scattered
         // distances, some in front of it and most behind
         let mut seed = 777u32;
@@ -1503,18 +1518,18 @@ mod tests {
         );
         let (w, h) = (83, 64);
         let draws = [Draw { first_index: 0, index_count: idx.len() as u32, material: 0 }];
-        let late = Nearer { quads: 0.into() };
+        let late = Nearer::<LP> { quads: 0.into() };
         let mut all = Target::new(w, h, [0, 0, 0, 0]);
         rasterize(&mut all, view_proj, &pos, &vary, &idx, &draws, &late);
-        let early = Nearer { quads: 0.into() };
+        let early = Nearer::<LP> { quads: 0.into() };
         let mut culled = Target::new(w, h, [0, 0, 0, 0]);
         let e = EarlyDepth { margin: MARGIN, near: NEAR, far: FAR };
         rasterize_early(&mut culled, view_proj, &pos, &vary, &idx, &draws, &early, Some(e));
-        assert!(all.color == culled.color, "the early test changed the image");
+        assert!(all.color == culled.color, "the early test changed the image (lanes packed: {LP})");
         assert!(all.depth.iter().zip(&culled.depth).all(|(a, b)| a.to_bits() == b.to_bits()));
         use std::sync::atomic::Ordering::Relaxed;
         let (a, b) = (late.quads.load(Relaxed), early.quads.load(Relaxed));
-        assert!(b * 4 < a * 3, "too little culled to test: {b} of {a} quads shaded");
+        assert!(b * 4 < a * 3, "too little culled to test: {b} of {a} quads (lanes) shaded");
         assert!(all.color.iter().filter(|c| c[0] == 1).count() > (w * h / 4) as usize, "the wall is not drawn");
     }
 
