@@ -668,7 +668,12 @@ impl<const K: usize, S: BlockShader<K>> pulp::WithSimd for BandOp<'_, K, S> {
         };
         let mut out = Out { shader: self.shader, color: self.color, depth: self.depth, hiz };
         let pack = self.shader.packs_triangles();
-        for &(c, i) in self.bin {
+        for (k, &(c, i)) in self.bin.iter().enumerate() {
+            // the set-up of a triangle a few ahead, on its way into the cache
+            // (set-ups come from the other workers' chunks)
+            if let Some(&(nc, ni)) = self.bin.get(k + PREFETCH_AHEAD) {
+                prefetch(&self.tris[nc as usize][ni as usize]);
+            }
             let t = &self.tris[c as usize][i as usize];
             raster_band(simd, t, &mut batch, &mut out, self.width, self.y_band, self.rows, self.occ);
             if !pack {
@@ -677,6 +682,28 @@ impl<const K: usize, S: BlockShader<K>> pulp::WithSimd for BandOp<'_, K, S> {
         }
         batch.flush(&mut out);
     }
+}
+
+/// Triangles between the one traversed and the one whose set-up is fetched.
+const PREFETCH_AHEAD: usize = 2;
+
+/// Asks for the cache lines of `v` (a hint: no effect on results).
+#[inline(always)]
+fn prefetch<T>(v: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let p = (v as *const T).cast::<i8>();
+        let mut off = 0;
+        while off < std::mem::size_of::<T>() {
+            // SAFETY: SSE is part of the x86-64 baseline, and a prefetch
+            // neither reads into the program nor faults, whatever the address
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(off)) };
+            off += 64;
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = v;
 }
 
 /// The band's program and buffers.
@@ -858,9 +885,10 @@ fn raster_band<const K: usize, S: BlockShader<K>, Sm: pulp::Simd>(
     let (x, y) = (t.x, t.y);
     // edge i opposite vertex i: from vertex i+1 to vertex i+2
     let ea = [(1usize, 2usize), (2, 0), (0, 1)];
-    // per-pixel steps of each edge function
-    let step_x: [i64; 3] = ea.map(|(a, b)| -(y[b] - y[a]) * ONE);
-    let step_y: [i64; 3] = ea.map(|(a, b)| (x[b] - x[a]) * ONE);
+    // per-pixel steps of each edge function (written out: `ea.map` compiled
+    // to a call per triangle)
+    let step_x: [i64; 3] = [-(y[2] - y[1]) * ONE, -(y[0] - y[2]) * ONE, -(y[1] - y[0]) * ONE];
+    let step_y: [i64; 3] = [(x[2] - x[1]) * ONE, (x[0] - x[2]) * ONE, (x[1] - x[0]) * ONE];
     // per-lane offsets of each edge function within a block
     let offs: [[i64; LANES]; 3] = std::array::from_fn(|i| {
         let mut o = [0i64; LANES];
@@ -1002,16 +1030,35 @@ fn raster_block<const K: usize, S: BlockShader<K>, Sm: pulp::Simd>(
         let (lx, ly) = (qx + lane_dx(lane) as u32, qy + lane_dy(lane) as u32 - y_band);
         ly as usize * width as usize + lx as usize
     };
+    // the depths under the lanes: two rows of eight when the block lies
+    // within the band and the frame, else lane by lane (1, the far plane,
+    // under lanes off the band)
+    let mut under = [1.0f32; LANES];
+    if !S::WRITES_DEPTH || occ.is_some() {
+        let (w, i0) = (width as usize, index(0));
+        if qx + 8 <= width && i0 + w + 8 <= out.depth.len() {
+            let (r0, r1) = (&out.depth[i0..i0 + 8], &out.depth[i0 + w..i0 + w + 8]);
+            for (lane, d) in under.iter_mut().enumerate() {
+                let x = lane_dx(lane) as usize;
+                *d = if lane_dy(lane) == 0 { r0[x] } else { r1[x] };
+            }
+        } else {
+            for (lane, d) in under.iter_mut().enumerate() {
+                if mask & (1 << lane) != 0 {
+                    *d = out.depth[index(lane)];
+                }
+            }
+        }
+    }
     // early depth test, unless the program computes depth itself (the
     // buffer may not yet hold the batch's quads: the test is made again
     // when they are written)
     if !S::WRITES_DEPTH {
+        let mut pass = 0u16;
         for lane in 0..LANES {
-            if mask & (1 << lane) != 0 && z[lane].partial_cmp(&out.depth[index(lane)]) != Some(std::cmp::Ordering::Less)
-            {
-                mask &= !(1 << lane);
-            }
+            pass |= ((z[lane] < under[lane]) as u16) << lane;
         }
+        mask &= pass;
         if mask == 0 {
             return;
         }
@@ -1025,17 +1072,15 @@ fn raster_block<const K: usize, S: BlockShader<K>, Sm: pulp::Simd>(
     // conservative early depth: lanes more than the margin behind what the
     // buffer already holds cannot pass the late test
     if let Some(p) = occ {
+        let mut hidden = 0u16;
         for lane in 0..LANES {
-            if mask & (1 << lane) != 0 {
-                let d = out.depth[index(lane)];
-                // nothing drawn yet: depth 1 (the far plane); the distance
-                // of depth d is near / (d/r + 1), with d/r + 1 > 0 for d < 1
-                // (r = far / (near − far) < −1): compared without dividing
-                if d < 1.0 && (w[lane] - p.margin) * (d * p.inv_r + 1.0) > p.near {
-                    mask &= !(1 << lane);
-                }
-            }
+            let d = under[lane];
+            // nothing drawn yet: depth 1 (the far plane); the distance
+            // of depth d is near / (d/r + 1), with d/r + 1 > 0 for d < 1
+            // (r = far / (near − far) < −1): compared without dividing
+            hidden |= ((d < 1.0 && (w[lane] - p.margin) * (d * p.inv_r + 1.0) > p.near) as u16) << lane;
         }
+        mask &= !hidden;
         if mask == 0 {
             return;
         }
