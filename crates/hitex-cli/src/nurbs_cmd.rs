@@ -1373,8 +1373,9 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                             }
                         );
                     }
-                    hitex_io::nurbs_json::to_iges_in(
+                    hitex_io::nurbs_json::to_iges_with(
                         &m.surfaces,
+                        &m.colors,
                         &format!("{} exported by hitex", m.name),
                         m.units.as_deref(),
                     )
@@ -1388,10 +1389,10 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             };
             // what the formats cannot carry is said, not dropped in silence
             let coloured = m.colors.iter().filter(|c| c.is_some()).count();
-            if coloured > 0 && ext.as_deref() != Some("json") {
+            if coloured > 0 && ext.as_deref() == Some("obj") {
                 eprintln!(
-                    "hitex: warning: {}: the colours of {} are not exported (the .igs and .obj exports \
-                     carry surfaces and trims only; .json keeps colours)",
+                    "hitex: warning: {}: the colours of {} are not exported (the .obj export carries \
+                     surfaces and trims only; .igs and .json keep colours)",
                     m.name,
                     crate::count(coloured, "face", "faces")
                 );

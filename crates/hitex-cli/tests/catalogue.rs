@@ -380,6 +380,17 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
         "trim conic (104) off standard position",
         &["nurbs", "render", &f, "--size", "32x24", "-o", &out],
     ));
+    // the base surface's colour number pointing at the arc (entry 2), not at a colour definition (314)
+    let coloured: Vec<String> = holes
+        .lines()
+        .map(|l| if l.ends_with("D      2") { format!("{}{:>8}{}", &l[..16], -3, &l[24..]) } else { l.to_string() })
+        .collect();
+    let f = w("colour-pointer.igs", (coloured.join("\n") + "\n").as_bytes());
+    v.push(c(
+        "IGES",
+        "colour number pointing at no colour definition (314)",
+        &["nurbs", "render", &f, "--size", "32x24", "-o", &out],
+    ));
     v.push(c("IGES", "no such file", &["nurbs", "info", &s(&d.join("gone.igs"))]));
     v.push(c("GST store", "no metadata.json", &["terrain", "fly", &s(d), "-o", &s(&d.join("frames"))]));
     let store = d.join("store");

@@ -145,14 +145,19 @@ fn curvature_ramps_of_a_machined_part_are_scaled_by_its_curved_faces() {
     }
 }
 
-/// An export says what its format cannot carry (STEP colours), and IGES
-/// keeps the model's length unit both ways.
+/// An export says what its format cannot carry (STEP colours in OBJ), and
+/// IGES keeps the model's length unit and colours both ways.
 #[test]
 fn exports_name_what_they_drop_and_keep_the_unit() {
     let asm = concat!(env!("CARGO_MANIFEST_DIR"), "/../hitex-io/data/cad/as1-oc-214.stp");
     let d = tmp("export-units");
     let out = d.join("asm.igs");
     let o = hitex(&["nurbs", "export", asm, "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!e.contains("colours of"), "IGES keeps colours (314): {e}");
+    let obj = d.join("asm.obj");
+    let o = hitex(&["nurbs", "export", asm, "-o", obj.to_str().unwrap()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("warning") && e.contains("colours of"), "{e}");
@@ -174,7 +179,12 @@ fn exports_name_what_they_drop_and_keep_the_unit() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         image::open(&out).unwrap().to_rgba8().into_raw()
     };
-    assert_eq!(render(asm, "step.png"), render(json.to_str().unwrap(), "json.png"));
+    let step = render(asm, "step.png");
+    assert_eq!(step, render(json.to_str().unwrap(), "json.png"));
+    // IGES: the colours pass through sRGB percent (314), within an 8-bit step
+    let iges = render(out.to_str().unwrap(), "iges.png");
+    assert_eq!(step.len(), iges.len());
+    assert!(step.iter().zip(&iges).all(|(a, b)| a.abs_diff(*b) <= 1), "the IGES export renders as the STEP file");
     // a model without a unit: IGES's default, said as a note
     let out = d.join("teapot.igs");
     let o = hitex(&["nurbs", "export", &teapot(), "-o", out.to_str().unwrap()]);

@@ -53,6 +53,11 @@ pub struct IgesModel {
     /// The length unit of the global section (parameters 14 and 15: "mm",
     /// "inch", …), where it names one.
     pub units: Option<String>,
+    /// Each surface's colour (linear RGB), parallel to `surfaces`, where its
+    /// directory entry gives one: a standard colour number (1–8) or a
+    /// pointer to a colour definition (314); a trimmed surface without one
+    /// takes its base surface's. Empty when no surface has a colour.
+    pub colors: Vec<Option<[f32; 3]>>,
 }
 
 struct DirEntry {
@@ -61,6 +66,9 @@ struct DirEntry {
     param_lines: i64,
     /// Directory pointer of the entity's transformation matrix (124), 0: none.
     transform: i64,
+    /// Colour number (field 13): 0 none, 1–8 a standard colour, negative
+    /// the directory pointer of a colour definition (314).
+    color: i64,
     line: usize,
 }
 
@@ -186,6 +194,7 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
             param_ptr: field(a, 1).unwrap_or(0),
             param_lines: field(b, 3).unwrap_or(0),
             transform: field(a, 6).unwrap_or(0),
+            color: field(b, 2).unwrap_or(0),
             line: ln,
         });
         let seq_a: Option<i64> = a.get(73..80).and_then(|s| s.trim().parse().ok());
@@ -305,6 +314,15 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
     let transforms: Vec<i64> = dirs.iter().map(|d| d.transform).collect();
     let matrix_of = |k: usize| transform_of(k, &transforms, &parsed);
     let mut surface_of: std::collections::HashMap<usize, usize> = std::collections::HashMap::new();
+    // each surface's colour by its directory entry (1-based)
+    let mut colour_of_entry: std::collections::HashMap<usize, Option<[f32; 3]>> = std::collections::HashMap::new();
+    let colours = colour_table(&dirs, &parsed);
+    // colours that cannot be read: the surfaces keep the default, and one
+    // warning names the first
+    let mut bad_colours: Vec<usize> = Vec::new();
+    let colour = |k: usize, bad: &mut Vec<usize>| -> Option<[f32; 3]> {
+        colours[k].as_ref().map_err(|_| bad.push(k)).ok().copied().flatten()
+    };
     for (k, (entity, fields, loc)) in parsed.iter().enumerate() {
         if *entity == 128 {
             let f: Vec<&str> = fields[1..].iter().map(String::as_str).collect();
@@ -316,6 +334,7 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
                 Err(m) => return Err(err(loc.clone(), format!("entity 128: {m}"))),
             }
             surface_of.insert(k, model.surfaces.len());
+            colour_of_entry.insert(k + 1, colour(k, &mut bad_colours));
             model.surfaces.push(IgesSurface { surface: s.0, range: s.1, directory_entry: k + 1, trim: Vec::new() });
         }
     }
@@ -338,13 +357,17 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
                             Err(m) => return Err(err(loc.clone(), format!("entity 144: {m}"))),
                         }
                         s.trim = loops;
+                        // the trimmed surface's colour, else its base surface's
+                        let own = colour(k, &mut bad_colours);
+                        let base_colour = colour_of_entry.get(&s.directory_entry).copied().flatten();
+                        colour_of_entry.insert(k + 1, own.or(base_colour));
                         s.directory_entry = k + 1;
                         trimmed.push(s);
                     }
                     Err(m) => model.warnings.push(format!("{loc}: entity 144 not trimmed: {m}")),
                 }
             }
-            142 | 126 | 102 | 110 | 100 | 104 | 106 | 124 => {}
+            142 | 126 | 102 | 110 | 100 | 104 | 106 | 124 | 314 => {}
             other => *skipped.entry(other).or_default() += 1,
         }
     }
@@ -354,6 +377,23 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
         kept.extend(trimmed);
         kept.sort_by_key(|s| s.directory_entry);
         model.surfaces = kept;
+    }
+    let colors: Vec<Option<[f32; 3]>> =
+        model.surfaces.iter().map(|s| colour_of_entry.get(&s.directory_entry).copied().flatten()).collect();
+    if colors.iter().any(Option::is_some) {
+        model.colors = colors;
+    }
+    bad_colours.sort_unstable();
+    bad_colours.dedup();
+    if let Some(&k) = bad_colours.first()
+        && let Err(m) = &colours[k]
+    {
+        let more = if bad_colours.len() > 1 {
+            format!(" (and {} more surfaces)", bad_colours.len() - 1)
+        } else {
+            String::new()
+        };
+        model.warnings.push(format!("{}: colour ignored, the default grey is used{more}: {m}", parsed[k].2));
     }
     for (&ty, n) in &skipped {
         let what = match ty {
@@ -385,6 +425,50 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
         ));
     }
     Ok(model)
+}
+
+/// The eight standard colour numbers of IGES 5.3 (field 13 of a directory
+/// entry), 1 = black … 8 = white, as sRGB.
+const STANDARD_COLOURS: [[f32; 3]; 8] = [
+    [0.0, 0.0, 0.0],
+    [1.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0],
+    [0.0, 0.0, 1.0],
+    [1.0, 1.0, 0.0],
+    [1.0, 0.0, 1.0],
+    [0.0, 1.0, 1.0],
+    [1.0, 1.0, 1.0],
+];
+
+/// Each directory entry's colour in linear RGB (`None`: the entry gives
+/// none), or why its colour cannot be read.
+fn colour_table(dirs: &[DirEntry], parsed: &Parsed) -> Vec<Result<Option<[f32; 3]>, String>> {
+    let linear = |c: [f32; 3]| Some(c.map(hitex_core::texture::srgb_to_linear));
+    dirs.iter()
+        .take(parsed.len())
+        .map(|d| match d.color {
+            0 => Ok(None),
+            n @ 1..=8 => Ok(linear(STANDARD_COLOURS[n as usize - 1])),
+            n if n > 8 => Err(format!("colour number {n} is neither a standard colour (1–8) nor a pointer (negative)")),
+            n => {
+                let j = entity_at(&n.unsigned_abs().to_string(), parsed.len())
+                    .map_err(|m| format!("colour pointer {n}: {m}"))?;
+                let (ty, fields, _) = &parsed[j];
+                if *ty != 314 {
+                    return Err(format!("colour pointer {n} names entity {ty}, not a colour definition (314)"));
+                }
+                // CC1–CC3: red, green and blue in percent of full intensity
+                let mut c = [0.0f32; 3];
+                for (i, v) in c.iter_mut().enumerate() {
+                    let x = fields.get(1 + i).and_then(|f| num(f)).filter(|x| x.is_finite()).ok_or_else(|| {
+                        format!("colour definition (314) at entry {}: field {} is not a number", j + 1, 2 + i)
+                    })?;
+                    *v = (x / 100.0).clamp(0.0, 1.0) as f32;
+                }
+                Ok(linear(c))
+            }
+        })
+        .collect()
 }
 
 /// Index of the entity a directory pointer (odd sequence number) names.
@@ -1119,18 +1203,25 @@ mod tests {
     /// Like [`iges_file`], each entity with the directory pointer of its
     /// transformation matrix (0: none).
     pub fn iges_file_placed(entities: &[(i64, &str, usize)]) -> String {
+        let with: Vec<(i64, &str, usize, i64)> = entities.iter().map(|&(t, r, m)| (t, r, m, 0)).collect();
+        iges_file_coloured(&with)
+    }
+
+    /// Like [`iges_file_placed`], each entity with its colour number too
+    /// (directory field 13: 0 none, 1–8 standard, −pointer to a 314).
+    pub fn iges_file_coloured(entities: &[(i64, &str, usize, i64)]) -> String {
         let mut s = line("generated", 'S', 1);
         s += &line("1H,,1H;;", 'G', 1);
         let mut dir = String::new();
         let mut par = String::new();
         let mut pl = 1;
-        for (k, (ty, rec, tr)) in entities.iter().enumerate() {
+        for (k, (ty, rec, tr, colour)) in entities.iter().enumerate() {
             let lines: Vec<String> =
                 rec.as_bytes().chunks(64).map(|c| String::from_utf8_lossy(c).to_string()).collect();
             let de = 2 * k + 1;
             dir +=
                 &line(&format!("{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}", ty, pl, 0, 1, 0, 0, tr, 0, 0), 'D', de);
-            dir += &line(&format!("{:>8}{:>8}{:>8}{:>8}{:>8}", ty, 0, 0, lines.len(), 0), 'D', de + 1);
+            dir += &line(&format!("{:>8}{:>8}{:>8}{:>8}{:>8}", ty, 0, colour, lines.len(), 0), 'D', de + 1);
             for l in lines {
                 par += &format!("{l:<64}{de:>8}P{pl:>7}\n");
                 pl += 1;
@@ -1381,6 +1472,64 @@ mod tests {
 
     const BILINEAR: &str =
         "128,1,1,1,1,0,0,1,0,0,0.,0.,1.,1.,0.,0.,1.,1.,1.,1.,1.,1.,0.,0.,0.,1.,0.,0.,0.,1.,0.,1.,1.,1.,0.,1.,0.,1.;";
+
+    #[test]
+    fn surfaces_take_their_colours_from_definitions_and_standard_numbers() {
+        let lin = |c: f32| hitex_core::texture::srgb_to_linear(c);
+        let text = iges_file_coloured(&[
+            (314, "314,100.,50.,0.,6Horange;", 0, 0),
+            (128, BILINEAR, 0, -1),
+            (128, BILINEAR, 0, 3),
+            (128, BILINEAR, 0, 0),
+        ]);
+        let m = parse_iges(&text, "c.igs").unwrap();
+        assert_eq!(m.surfaces.len(), 3);
+        assert!(m.warnings.is_empty(), "a colour definition that is used is not 'skipped': {:?}", m.warnings);
+        assert_eq!(m.colors, vec![Some([1.0, lin(0.5), 0.0]), Some([0.0, 1.0, 0.0]), None]);
+        // no colours anywhere: none listed
+        let m = parse_iges(&iges_file(&[(128, BILINEAR)]), "n.igs").unwrap();
+        assert!(m.colors.is_empty());
+    }
+
+    #[test]
+    fn a_trimmed_surface_without_a_colour_takes_its_base_surfaces() {
+        let text = holed_square();
+        // the base surface (entry 1) coloured blue through its standard number
+        let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+        let second = lines.iter().position(|l| l.ends_with("D      2")).unwrap();
+        lines[second].replace_range(16..24, &format!("{:>8}", 4));
+        let m = parse_iges(&(lines.join("\n") + "\n"), "h.igs").unwrap();
+        assert_eq!(m.surfaces.len(), 1);
+        assert!(!m.surfaces[0].trim.is_empty());
+        assert_eq!(m.colors, vec![Some([0.0, 0.0, 1.0])]);
+    }
+
+    #[test]
+    fn unreadable_colours_leave_the_default_with_one_warning_naming_the_entry() {
+        type Entities<'a> = &'a [(i64, &'a str, usize, i64)];
+        let cases: [(Entities, &str); 4] = [
+            (
+                &[(128, BILINEAR, 0, -7), (128, BILINEAR, 0, -7)],
+                "colour pointer -7: pointer 7 names no directory entry",
+            ),
+            (
+                &[(110, "110,0.,0.,0.,1.,0.,0.;", 0, 0), (128, BILINEAR, 0, -1)],
+                "names entity 110, not a colour definition",
+            ),
+            (&[(314, "314,100.,zz,0.;", 0, 0), (128, BILINEAR, 0, -1)], "field 3 is not a number"),
+            (&[(128, BILINEAR, 0, 12)], "colour number 12 is neither"),
+        ];
+        for (entities, needle) in cases {
+            let m = parse_iges(&iges_file_coloured(entities), "w.igs").unwrap();
+            assert!(m.colors.is_empty(), "{needle}");
+            let w: Vec<&String> = m.warnings.iter().filter(|w| w.contains("colour ignored")).collect();
+            assert_eq!(w.len(), 1, "{:?}", m.warnings);
+            assert!(w[0].contains(needle) && w[0].contains("directory entry"), "{}", w[0]);
+        }
+        // the same bad pointer on two surfaces: one warning that counts the other
+        let m = parse_iges(&iges_file_coloured(cases[0].0), "w.igs").unwrap();
+        assert!(m.warnings.iter().any(|w| w.contains("and 1 more surfaces")), "{:?}", m.warnings);
+    }
 
     #[test]
     fn tiny_file_reads_without_repairs() {

@@ -61,7 +61,7 @@ fn from_iges(name: &str, m: IgesModel) -> NurbsModel {
         notes: vec![],
         census: Default::default(),
         units: m.units,
-        colors: vec![],
+        colors: m.colors,
     }
 }
 

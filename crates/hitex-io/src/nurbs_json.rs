@@ -184,6 +184,37 @@ pub fn to_iges(surfaces: &[IgesSurface], description: &str) -> String {
 /// (`units` as the readers name them: "mm", "inch", …; `None` or a unit
 /// IGES has no flag for: millimetres, IGES's own default).
 pub fn to_iges_in(surfaces: &[IgesSurface], description: &str, units: Option<&str>) -> String {
+    to_iges_with(surfaces, &[], description, units)
+}
+
+/// The sRGB value that the IGES reader turns back nearest to linear `x`
+/// (of a few steps of f32 about the encoding's value: exactly `x` where
+/// one does, as 0 and 1 do; the decoding is steeper than one f32 step in
+/// places, so not every linear value has an exact preimage).
+fn srgb_of(x: f32) -> f32 {
+    use hitex_core::texture::{linear_to_srgb, srgb_to_linear};
+    let s = linear_to_srgb(x);
+    let step = |v: f32, k: i32| f32::from_bits((v.to_bits() as i32 + k).max(0) as u32);
+    let miss = |c: f32| (f64::from(srgb_to_linear(c)) - f64::from(x)).abs();
+    // a short decimal first: of equally near values the first is kept
+    let short = (s * 1e4).round() / 1e4;
+    std::iter::once(short)
+        .chain((-4..=4).map(|k| step(s, k)))
+        .filter(|c| (0.0..=1.0).contains(c))
+        .min_by(|a, b| miss(*a).total_cmp(&miss(*b)))
+        .unwrap_or(s)
+}
+
+/// [`to_iges_in`] with each surface's colour (linear RGB, parallel to
+/// `surfaces`; missing or `None`: no colour): one colour definition (314)
+/// per distinct colour, in percent of sRGB intensity, named by the colour
+/// number of the surfaces (and trimmed surfaces) that have it.
+pub fn to_iges_with(
+    surfaces: &[IgesSurface],
+    colors: &[Option<[f32; 3]>],
+    description: &str,
+    units: Option<&str>,
+) -> String {
     fn lines_of(data: &str, width: usize) -> Vec<String> {
         // break at delimiters so that no number is split
         let mut out = Vec::new();
@@ -210,11 +241,27 @@ pub fn to_iges_in(surfaces: &[IgesSurface], description: &str, units: Option<&st
     for (i, l) in glines.iter().enumerate() {
         s += &format!("{l:<72}G{:>7}\n", i + 1);
     }
-    // entities in file order: (type, record, status); entity i has directory
-    // sequence number 2i + 1
-    let mut ents: Vec<(u32, String, &str)> = Vec::new();
+    // entities in file order: (type, record, status, colour number); entity
+    // i has directory sequence number 2i + 1
+    let mut ents: Vec<(u32, String, &str, i64)> = Vec::new();
     let de = |i: usize| 2 * i + 1;
-    for p in surfaces {
+    // the colour definitions first, one per distinct colour (bits compared)
+    let mut defined: Vec<([u32; 3], usize)> = Vec::new();
+    for c in colors.iter().take(surfaces.len()).flatten() {
+        let key = c.map(f32::to_bits);
+        if !defined.iter().any(|(k, _)| *k == key) {
+            let pct = c.map(|x| format!("{:?}", f64::from(srgb_of(x)) * 100.0));
+            defined.push((key, ents.len()));
+            ents.push((314, format!("314,{},{},{};", pct[0], pct[1], pct[2]), "00000200", 0));
+        }
+    }
+    let colour_number = |k: usize| -> i64 {
+        let Some(Some(c)) = colors.get(k) else { return 0 };
+        let key = c.map(f32::to_bits);
+        defined.iter().find(|(d, _)| *d == key).map_or(0, |&(_, e)| -(de(e) as i64))
+    };
+    for (k, p) in surfaces.iter().enumerate() {
+        let colour = colour_number(k);
         let n = &p.surface;
         let mut fields = vec![
             "128".to_string(),
@@ -237,7 +284,7 @@ pub fn to_iges_in(surfaces: &[IgesSurface], description: &str, units: Option<&st
         fields.extend([p.range.0.0, p.range.0.1, p.range.1.0, p.range.1.1].map(|x| format!("{x:?}")));
         let surface = ents.len();
         let trimmed = p.trim.iter().any(|l| l.len() >= 2);
-        ents.push((128, fields.join(",") + ";", if trimmed { "00010000" } else { "00000000" }));
+        ents.push((128, fields.join(",") + ";", if trimmed { "00010000" } else { "00000000" }, colour));
         if !trimmed {
             continue;
         }
@@ -265,9 +312,9 @@ pub fn to_iges_in(surfaces: &[IgesSurface], description: &str, units: Option<&st
             }
             f.extend(["0.0".to_string(), format!("{:?}", k as f64), "0.0".into(), "0.0".into(), "1.0".into()]);
             let c126 = ents.len();
-            ents.push((126, f.join(",") + ";", "00010500"));
+            ents.push((126, f.join(",") + ";", "00010500", 0));
             let c142 = ents.len();
-            ents.push((142, format!("142,1,{},{},0,1;", de(surface), de(c126)), "00010000"));
+            ents.push((142, format!("142,1,{},{},0,1;", de(surface), de(c126)), "00010000", 0));
             curves.push(c142);
         }
         let inner: Vec<String> = curves[1..].iter().map(|&c| de(c).to_string()).collect();
@@ -275,12 +322,12 @@ pub fn to_iges_in(surfaces: &[IgesSurface], description: &str, units: Option<&st
         for i in inner {
             rec += &format!(",{i}");
         }
-        ents.push((144, rec + ";", "00000000"));
+        ents.push((144, rec + ";", "00000000", colour));
     }
     let mut dir = String::new();
     let mut par = String::new();
     let mut pline = 1usize;
-    for (i, (ty, record, status)) in ents.iter().enumerate() {
+    for (i, (ty, record, status, colour)) in ents.iter().enumerate() {
         let lines = lines_of(record, 64);
         let d = de(i);
         dir +=
@@ -289,7 +336,7 @@ pub fn to_iges_in(surfaces: &[IgesSurface], description: &str, units: Option<&st
             "{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}D{:>7}\n",
             ty,
             0,
-            0,
+            colour,
             lines.len(),
             0,
             "",
@@ -381,6 +428,45 @@ mod tests {
         assert_eq!(p[2], "a,b;c.d");
         assert_eq!(p[13], "3");
         assert_eq!(p[14], "INCH");
+    }
+
+    #[test]
+    fn iges_round_trip_keeps_colours() {
+        // untrimmed teapot patches and the trimmed holed square, some coloured,
+        // two sharing a colour, one without
+        let mut a = teapot();
+        a.truncate(4);
+        a.extend(
+            crate::iges::load_iges(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/holed-square.igs"))
+                .unwrap()
+                .surfaces,
+        );
+        let c =
+            vec![Some([0.8, 0.1, 0.05]), None, Some([0.0, 0.5, 1.0]), Some([0.8, 0.1, 0.05]), Some([0.2, 0.3, 1.0])];
+        let text = to_iges_with(&a, &c, "colours", None);
+        assert_eq!(text.lines().filter(|l| l.starts_with("314,")).count(), 3, "one definition per distinct colour");
+        let m = parse_iges(&text, "c.igs").unwrap();
+        assert!(m.warnings.is_empty() && m.repairs.is_empty(), "{:?} {:?}", m.warnings, m.repairs);
+        assert_eq!(m.colors.len(), a.len());
+        for (k, (x, y)) in c.iter().zip(&m.colors).enumerate() {
+            match (x, y) {
+                (None, None) => {}
+                (Some(x), Some(y)) => {
+                    // through sRGB percent and back: within an f32 step or two
+                    assert!(
+                        (0..3).all(|t| (x[t] - y[t]).abs() <= 2.0 * f32::EPSILON * x[t]),
+                        "surface {k}: {x:?} → {y:?}"
+                    );
+                }
+                _ => panic!("surface {k}: {x:?} read back as {y:?}"),
+            }
+        }
+        assert!(!m.surfaces[4].trim.is_empty(), "the trimmed surface stays trimmed");
+        // black and full intensity come back exactly
+        let back = m.colors[2].unwrap_or_default();
+        assert_eq!((back[0], back[2]), (0.0, 1.0));
+        // no colours: the file is the one written without them
+        assert_eq!(to_iges_with(&a, &[], "colours", None), to_iges(&a, "colours"));
     }
 
     #[test]
