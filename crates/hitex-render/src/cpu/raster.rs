@@ -1078,7 +1078,9 @@ fn raster_block<const K: usize, S: BlockShader<K>, Sm: pulp::Simd>(
             // nothing drawn yet: depth 1 (the far plane); the distance
             // of depth d is near / (d/r + 1), with d/r + 1 > 0 for d < 1
             // (r = far / (near − far) < −1): compared without dividing
-            hidden |= ((d < 1.0 && (w[lane] - p.margin) * (d * p.inv_r + 1.0) > p.near) as u16) << lane;
+            // (`&`, not `&&`: both sides are computed for every lane, as
+            // vector code, instead of a branch a lane)
+            hidden |= (((d < 1.0) & ((w[lane] - p.margin) * (d * p.inv_r + 1.0) > p.near)) as u16) << lane;
         }
         mask &= !hidden;
         if mask == 0 {

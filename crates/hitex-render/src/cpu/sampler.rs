@@ -135,7 +135,7 @@ impl<'a> LaneSampler<'a> {
             Wrap::Repeat => {
                 for i in 0..LANES {
                     let m = f[i] - n[i] * simd::floor(f[i] / n[i]);
-                    o[i] = if f[i] >= 0.0 && f[i] < n[i] { f[i] } else { m };
+                    o[i] = if (f[i] >= 0.0) & (f[i] < n[i]) { f[i] } else { m };
                 }
             }
             Wrap::Clamp => {
@@ -148,7 +148,7 @@ impl<'a> LaneSampler<'a> {
                     let p = 2.0 * n[i];
                     let m = f[i] - p * simd::floor(f[i] / p);
                     let m = if m >= n[i] { p - 1.0 - m } else { m };
-                    o[i] = if f[i] >= 0.0 && f[i] < n[i] { f[i] } else { m };
+                    o[i] = if (f[i] >= 0.0) & (f[i] < n[i]) { f[i] } else { m };
                 }
             }
         }
@@ -199,7 +199,7 @@ impl<'a> LaneSampler<'a> {
         let first = (live.trailing_zeros() as usize).min(LANES - 1);
         let mut same = true;
         for i in 0..LANES {
-            same &= live & (1 << i) == 0 || (l0[i] == l0[first] && l1[i] == l1[first]);
+            same &= (live & (1 << i) == 0) | ((l0[i] == l0[first]) & (l1[i] == l1[first]));
         }
         let mut out = [[1.0; LANES]; 3];
         let last_level = self.levels.len() - 1;

@@ -509,7 +509,7 @@ impl Program<'_> {
         let a = self.bilinear_lanes(&z0, ok, ok, &gx, &gy);
         let mut second = 0u32;
         for i in 0..LANES {
-            second |= ((z1[i] != z0[i] && t[i] > 0.0) as u32) << i;
+            second |= (((z1[i] != z0[i]) & (t[i] > 0.0)) as u32) << i;
         }
         let second = second & ok;
         let b = if second != 0 { self.bilinear_lanes(&z1, second, ok, &gx, &gy) } else { a };
@@ -920,7 +920,7 @@ impl MeshProgram<'_> {
         let a = prog.bilinear_lanes(&z0, 0xffff, 0xffff, gx, gy);
         let mut second = 0u32;
         for i in 0..LANES {
-            second |= ((z1[i] != z0[i] && t[i] > 0.0) as u32) << i;
+            second |= (((z1[i] != z0[i]) & (t[i] > 0.0)) as u32) << i;
         }
         let c = if second != 0 { prog.bilinear_lanes(&z1, second, 0xffff, gx, gy) } else { a };
         let mut out = a;

@@ -274,7 +274,7 @@ fn normalize_or_zero(v: &V3) -> V3 {
     let mut s = [0.0; LANES];
     for i in 0..LANES {
         let rcp = 1.0 / len2[i].sqrt();
-        s[i] = if rcp.is_finite() && len2[i] > 0.0 { rcp } else { 0.0 };
+        s[i] = if rcp.is_finite() & (len2[i] > 0.0) { rcp } else { 0.0 };
     }
     V3 { x: zip(&v.x, &s, |a, s| a * s), y: zip(&v.y, &s, |a, s| a * s), z: zip(&v.z, &s, |a, s| a * s) }
 }
