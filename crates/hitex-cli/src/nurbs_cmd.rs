@@ -1316,6 +1316,20 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             let d: Vec<String> = degrees.iter().map(|((p, q), c)| format!("{p}×{q}: {c}")).collect();
             say!("degrees: {}", d.join(", "));
             say!("bounds of the control nets: min {lo:?} max {hi:?}");
+            let coloured: Vec<[u32; 3]> = m.colors.iter().flatten().map(|c| c.map(f32::to_bits)).collect();
+            if !coloured.is_empty() {
+                let mut distinct = coloured.clone();
+                distinct.sort_unstable();
+                distinct.dedup();
+                let grey = m.surfaces.len().saturating_sub(coloured.len());
+                say!(
+                    "colours: {} of {} coloured, {} distinct, the shaded mode's albedo{}",
+                    coloured.len(),
+                    crate::count(m.surfaces.len(), "patch", "patches"),
+                    distinct.len(),
+                    if grey > 0 { format!("; the other {grey} grey") } else { String::new() }
+                );
+            }
             for n in &m.notes {
                 say!("{n}");
             }
