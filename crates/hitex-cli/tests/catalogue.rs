@@ -391,6 +391,13 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
         "colour number pointing at no colour definition (314)",
         &["nurbs", "render", &f, "--size", "32x24", "-o", &out],
     ));
+    // a parametric spline surface (114) whose u breakpoints repeat (same record length)
+    let spline = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/seeds/iges/spline-surface-114.igs"),
+    )
+    .unwrap();
+    let f = w("spline-breaks.igs", spline.replacen("114,3,1,2,1,0.,1.,2.,", "114,3,1,2,1,0.,1.,1.,", 1).as_bytes());
+    v.push(c("IGES", "parametric spline surface (114) with breakpoints that do not rise", &["nurbs", "info", &f]));
     v.push(c("IGES", "no such file", &["nurbs", "info", &s(&d.join("gone.igs"))]));
     v.push(c("GST store", "no metadata.json", &["terrain", "fly", &s(d), "-o", &s(&d.join("frames"))]));
     let store = d.join("store");

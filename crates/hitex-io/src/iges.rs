@@ -336,6 +336,18 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
             surface_of.insert(k, model.surfaces.len());
             colour_of_entry.insert(k + 1, colour(k, &mut bad_colours));
             model.surfaces.push(IgesSurface { surface: s.0, range: s.1, directory_entry: k + 1, trim: Vec::new() });
+        } else if *entity == 114 {
+            // a grid of bicubic polynomial patches: one Bézier patch each, exactly
+            let f: Vec<&str> = fields[1..].iter().map(String::as_str).collect();
+            let patches = parse_114(&f).map_err(|m| err(loc.clone(), format!("entity 114: {m}")))?;
+            let m = matrix_of(k).map_err(|m| err(loc.clone(), format!("entity 114: {m}")))?;
+            colour_of_entry.insert(k + 1, colour(k, &mut bad_colours));
+            for (mut s, range) in patches {
+                if let Some(m) = &m {
+                    apply_124(&mut s, m);
+                }
+                model.surfaces.push(IgesSurface { surface: s, range, directory_entry: k + 1, trim: Vec::new() });
+            }
         }
     }
     // trimmed surfaces (144): the base surface is replaced by its trimmed form
@@ -343,7 +355,7 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
     let mut consumed = std::collections::HashSet::new();
     for (k, (entity, fields, loc)) in parsed.iter().enumerate() {
         match *entity {
-            128 => {}
+            128 | 114 => {}
             144 => {
                 let f: Vec<&str> = fields[1..].iter().map(String::as_str).collect();
                 match trimmed_surface(&f, &parsed, &transforms, &surface_of, &model.surfaces) {
@@ -420,7 +432,7 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
         return Err(err(
             String::new(),
             format!(
-                "no rational B-spline surface (entity 128) found: {holds}; hitex reads 128 surfaces, trimmed by 144/142"
+                "no rational B-spline surface (entity 128) or parametric spline surface (114) found: {holds}; hitex reads 128 and 114 surfaces, trimmed by 144/142"
             ),
         ));
     }
@@ -1098,6 +1110,100 @@ type Range = ((f64, f64), (f64, f64));
 
 /// Entity 128 fields after the type: K1, K2, M1, M2, PROP1–5, knots S, knots
 /// T, weights, control points, U0, U1, V0, V1.
+/// Entity 114 fields after the type: CTYPE, PTYPE, M, N, the breakpoints
+/// TU(1..M+1) and TV(1..N+1), then 48 coefficients for each of the
+/// (M+1)×(N+1) patches, u index outer: per coordinate x, y, z the 16
+/// coefficients A B C D E F G H K L M N P Q R S of `Σ c[4b+a]·s^a·t^b`,
+/// s = u − TU(i), t = v − TV(j) (the last row and column of patches only
+/// complete the grid). Each of the M×N patches becomes a polynomial bicubic
+/// Bézier patch over [TU(i), TU(i+1)] × [TV(j), TV(j+1)], exactly: the
+/// power basis scaled to the patch's width and height, then converted to
+/// Bernstein form.
+fn parse_114(f: &[&str]) -> Result<Vec<(NurbsSurface, Range)>, String> {
+    let int = |i: usize, what: &str| -> Result<u64, String> {
+        let s = f.get(i).ok_or_else(|| format!("record ends before {what} (field {})", i + 2))?;
+        let v = num(s).ok_or_else(|| format!("{what} '{s}' is not a number"))?;
+        if v.fract() != 0.0 || !(1.0..=f.len() as f64).contains(&v) {
+            return Err(format!("{what} = {v} is not a segment count the record can hold"));
+        }
+        Ok(v as u64)
+    };
+    let (m, n) = (int(2, "M (u segments)")?, int(3, "N (v segments)")?);
+    // declared sizes against the record before allocating
+    let need = (48u64.saturating_mul(m + 1).saturating_mul(n + 1)).saturating_add(6 + m + n);
+    if need > f.len() as u64 {
+        return Err(format!("declares {m}×{n} patches, which needs {need} fields, but the record has {}", f.len()));
+    }
+    let (m, n) = (m as usize, n as usize);
+    let real = |i: usize, what: &dyn Fn() -> String| -> Result<f64, String> {
+        let s = f.get(i).ok_or_else(|| format!("record ends before {}", what()))?;
+        num(s).filter(|x| x.is_finite()).ok_or_else(|| format!("{} '{s}' is not a finite number", what()))
+    };
+    let breaks = |at: usize, count: usize, dir: &str| -> Result<Vec<f64>, String> {
+        let t: Vec<f64> =
+            (0..count).map(|i| real(at + i, &|| format!("breakpoint T{dir}({})", i + 1))).collect::<Result<_, _>>()?;
+        if let Some(i) = t.windows(2).position(|w| w[1] <= w[0]) {
+            return Err(format!(
+                "breakpoints T{dir} do not rise: T{dir}({}) = {} ≥ T{dir}({}) = {}",
+                i + 1,
+                t[i],
+                i + 2,
+                t[i + 1]
+            ));
+        }
+        Ok(t)
+    };
+    let tu = breaks(4, m + 1, "U")?;
+    let tv = breaks(5 + m, n + 1, "V")?;
+    let base = 6 + m + n;
+    // Bernstein from power coefficients of degree 3: P_i = Σ_{a ≤ i} C(i,a)/C(3,a) c_a
+    const TO_BERNSTEIN: [[f64; 4]; 4] =
+        [[1.0, 0.0, 0.0, 0.0], [1.0, 1.0 / 3.0, 0.0, 0.0], [1.0, 2.0 / 3.0, 1.0 / 3.0, 0.0], [1.0, 1.0, 1.0, 1.0]];
+    let mut out = Vec::with_capacity(m * n);
+    for i in 0..m {
+        for j in 0..n {
+            let (h, g) = (tu[i + 1] - tu[i], tv[j + 1] - tv[j]);
+            let at = base + 48 * (i * (n + 1) + j);
+            let mut points = vec![[0.0, 0.0, 0.0, 1.0]; 16];
+            for q in 0..3 {
+                // c[a][b] scaled to the patch: s = h·σ, t = g·τ
+                let mut c = [[0.0f64; 4]; 4];
+                for (b, gb) in [1.0, g, g * g, g * g * g].into_iter().enumerate() {
+                    for (a, ha) in [1.0, h, h * h, h * h * h].into_iter().enumerate() {
+                        let k = 16 * q + 4 * b + a;
+                        let v = real(at + k, &|| {
+                            format!(
+                                "patch ({}, {}) coefficient {} of {}",
+                                i + 1,
+                                j + 1,
+                                "ABCDEFGHKLMNPQRS".as_bytes()[k % 16] as char,
+                                ["x", "y", "z"][q]
+                            )
+                        })?;
+                        c[a][b] = v * ha * gb;
+                    }
+                }
+                for (pi, ri) in TO_BERNSTEIN.iter().enumerate() {
+                    for (pj, rj) in TO_BERNSTEIN.iter().enumerate() {
+                        let mut v = 0.0;
+                        for a in 0..4 {
+                            for b in 0..4 {
+                                v += ri[a] * rj[b] * c[a][b];
+                            }
+                        }
+                        points[4 * pj + pi][q] = v;
+                    }
+                }
+            }
+            let knots = |a: f64, b: f64| vec![a, a, a, a, b, b, b, b];
+            let s = NurbsSurface::new(3, 3, 4, 4, knots(tu[i], tu[i + 1]), knots(tv[j], tv[j + 1]), points)
+                .map_err(|e| e.to_string())?;
+            out.push((s, ((tu[i], tu[i + 1]), (tv[j], tv[j + 1]))));
+        }
+    }
+    Ok(out)
+}
+
 fn parse_128(f: &[&str]) -> Result<(NurbsSurface, Range), String> {
     let int = |i: usize, what: &str| -> Result<i64, String> {
         let s = f.get(i).ok_or_else(|| format!("record ends before {what} (field {})", i + 2))?;
@@ -1244,8 +1350,9 @@ mod tests {
         let e = parse_iges(&text, "part.igs").unwrap_err().to_string();
         assert_eq!(
             e,
-            "part.igs: no rational B-spline surface (entity 128) found: it holds 2 × 110 (line), \
-             1 × 116 (point), 1 × 186 (manifold solid B-rep); hitex reads 128 surfaces, trimmed by 144/142"
+            "part.igs: no rational B-spline surface (entity 128) or parametric spline surface (114) found: \
+             it holds 2 × 110 (line), \
+             1 × 116 (point), 1 × 186 (manifold solid B-rep); hitex reads 128 and 114 surfaces, trimmed by 144/142"
         );
     }
 
@@ -1529,6 +1636,117 @@ mod tests {
         // the same bad pointer on two surfaces: one warning that counts the other
         let m = parse_iges(&iges_file_coloured(cases[0].0), "w.igs").unwrap();
         assert!(m.warnings.iter().any(|w| w.contains("and 1 more surfaces")), "{:?}", m.warnings);
+    }
+
+    /// The coefficients of entity 114 records, read independently of the
+    /// reader: (TU, TV, 48 coefficients of each of the (M+1)×(N+1) patches).
+    fn records_114(text: &str) -> Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+        let mut recs: std::collections::BTreeMap<usize, String> = Default::default();
+        for l in text.lines().filter(|l| l.len() > 72 && &l[72..73] == "P") {
+            recs.entry(l[64..72].trim().parse().unwrap()).or_default().push_str(&l[..64]);
+        }
+        recs.values()
+            .filter(|r| r.starts_with("114,"))
+            .map(|r| {
+                let f: Vec<f64> =
+                    r.split(';').next().unwrap().split(',').skip(1).map(|x| x.trim().parse().unwrap()).collect();
+                let (m, n) = (f[2] as usize, f[3] as usize);
+                (f[4..5 + m].to_vec(), f[5 + m..6 + m + n].to_vec(), f[6 + m + n..].to_vec())
+            })
+            .collect()
+    }
+
+    #[test]
+    fn parametric_spline_surfaces_become_exact_bezier_patches() {
+        // a real file of four 114 entities (8×3, 6×3, 8×3 and 8×6 bicubic patches)
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cad/surf114.igs");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let m = parse_iges(&text, "surf114.igs").unwrap();
+        assert_eq!(m.surfaces.len(), 114);
+        assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+        assert_eq!(m.units.as_deref(), Some("inch"));
+        let recs = records_114(&text);
+        assert_eq!(recs.len(), 4);
+        let mut k = 0;
+        let mut worst: f64 = 0.0;
+        for (tu, tv, c) in &recs {
+            let n = tv.len() - 1;
+            for i in 0..tu.len() - 1 {
+                for j in 0..n {
+                    let s = &m.surfaces[k];
+                    assert_eq!(s.range, ((tu[i], tu[i + 1]), (tv[j], tv[j + 1])));
+                    let at = 48 * (i * (n + 1) + j);
+                    for step in 0..25 {
+                        let (fu, fv) = ((step % 5) as f64 / 4.0, (step / 5) as f64 / 4.0);
+                        let (u, v) = (tu[i] + fu * (tu[i + 1] - tu[i]), tv[j] + fv * (tv[j + 1] - tv[j]));
+                        let (ds, dt) = (u - tu[i], v - tv[j]);
+                        let p = s.surface.point(u, v);
+                        for q in 0..3 {
+                            let mut want = 0.0;
+                            for b in 0..4 {
+                                for a in 0..4 {
+                                    want += c[at + 16 * q + 4 * b + a] * ds.powi(a as i32) * dt.powi(b as i32);
+                                }
+                            }
+                            worst = worst.max((p[q] - want).abs());
+                        }
+                    }
+                    k += 1;
+                }
+            }
+        }
+        // the polynomials themselves, to rounding (the model is about 4 inches across)
+        assert!(worst < 1e-11, "{worst}");
+        // neighbouring patches meet to the file's six digits
+        let (a, b) = (&m.surfaces[0], &m.surfaces[1]);
+        let v = a.range.1.1;
+        for f in [0.0, 0.3, 1.0] {
+            let u = a.range.0.0 + f * (a.range.0.1 - a.range.0.0);
+            let (p, q) = (a.surface.point(u, v), b.surface.point(u, v));
+            assert!((0..3).all(|t| (p[t] - q[t]).abs() < 1e-5), "{p:?} {q:?}");
+        }
+    }
+
+    #[test]
+    fn malformed_parametric_spline_surfaces_name_the_entry() {
+        let patch = |m: &str, n: &str, tu: &str, coef: &str| -> String {
+            let mut r = format!("114,3,1,{m},{n},{tu},0.,1.");
+            for k in 0..4 * 48 {
+                r += &format!(",{}", if k == 5 { coef } else { "0." });
+            }
+            r + ";"
+        };
+        for (rec, needle) in [
+            (patch("1", "1", "0.,1.", "1."), ""),
+            (patch("0", "1", "0.,1.", "1."), "M (u segments) = 0"),
+            (patch("40", "1", "0.,1.", "1."), "needs"),
+            (patch("1", "1", "1.,1.", "1."), "breakpoints TU do not rise"),
+            (patch("1", "1", "0.,1.", "zz"), "coefficient F of x 'zz'"),
+        ] {
+            let r = parse_iges(&iges_file(&[(114, &rec)]), "s.igs");
+            if needle.is_empty() {
+                assert_eq!(r.unwrap().surfaces.len(), 1);
+                continue;
+            }
+            let e = r.unwrap_err().to_string();
+            assert!(
+                e.contains("s.igs")
+                    && e.contains("directory entry 1")
+                    && e.contains("entity 114")
+                    && e.contains(needle),
+                "{e}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_file_of_curves_only_says_so() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cad/curve_geom_plate.igs");
+        let e = load_iges(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("curve_geom_plate.igs") && e.contains("126 (rational B-spline curve)") && e.contains("114"),
+            "{e}"
+        );
     }
 
     #[test]
