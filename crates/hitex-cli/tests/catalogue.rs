@@ -398,6 +398,16 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
     .unwrap();
     let f = w("spline-breaks.igs", spline.replacen("114,3,1,2,1,0.,1.,2.,", "114,3,1,2,1,0.,1.,1.,", 1).as_bytes());
     v.push(c("IGES", "parametric spline surface (114) with breakpoints that do not rise", &["nurbs", "info", &f]));
+    // a surface of revolution (120) whose generatrix pointer names the matrix (124) instead of a curve
+    let swept =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/seeds/iges/swept-surfaces.igs"))
+            .unwrap();
+    let f = w("revolved-matrix.igs", swept.replacen("120,1,3,", "120,1,9,", 1).as_bytes());
+    v.push(c(
+        "IGES",
+        "surface of revolution (120) of an entity that is not a curve",
+        &["nurbs", "render", &f, "--size", "32x24", "-o", &out],
+    ));
     v.push(c("IGES", "no such file", &["nurbs", "info", &s(&d.join("gone.igs"))]));
     v.push(c("GST store", "no metadata.json", &["terrain", "fly", &s(d), "-o", &s(&d.join("frames"))]));
     let store = d.join("store");

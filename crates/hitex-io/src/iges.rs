@@ -8,6 +8,8 @@
 //! skipped with a warning. All sizes declared in a record are checked against
 //! the record's length before anything is allocated.
 
+use crate::step::geometry::{Arc, Curve, Frame, Kind, Surface};
+use glam::{DVec2, DVec3};
 use hitex_core::nurbs::{MAX_DEGREE, NurbsSurface};
 use std::path::Path;
 use thiserror::Error;
@@ -336,6 +338,26 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
             surface_of.insert(k, model.surfaces.len());
             colour_of_entry.insert(k + 1, colour(k, &mut bad_colours));
             model.surfaces.push(IgesSurface { surface: s.0, range: s.1, directory_entry: k + 1, trim: Vec::new() });
+        } else if *entity == 120 || *entity == 122 {
+            // swept surfaces: a curve turned about a line, or moved along one
+            let f: Vec<&str> = fields[1..].iter().map(String::as_str).collect();
+            let swept =
+                if *entity == 120 { revolution(&f, &parsed, &transforms) } else { tabulated(&f, &parsed, &transforms) };
+            let placed = swept.and_then(|(mut s, range)| {
+                if let Some(m) = matrix_of(k)? {
+                    apply_124(&mut s, &m);
+                }
+                Ok((s, range))
+            });
+            match placed {
+                Ok((s, range)) => {
+                    colour_of_entry.insert(k + 1, colour(k, &mut bad_colours));
+                    model.surfaces.push(IgesSurface { surface: s, range, directory_entry: k + 1, trim: Vec::new() });
+                }
+                Err(m) => {
+                    model.warnings.push(format!("{loc}: entity {entity} ({}) skipped: {m}", entity_name(*entity)))
+                }
+            }
         } else if *entity == 114 {
             // a grid of bicubic polynomial patches: one Bézier patch each, exactly
             let f: Vec<&str> = fields[1..].iter().map(String::as_str).collect();
@@ -355,7 +377,7 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
     let mut consumed = std::collections::HashSet::new();
     for (k, (entity, fields, loc)) in parsed.iter().enumerate() {
         match *entity {
-            128 | 114 => {}
+            128 | 114 | 120 | 122 => {}
             144 => {
                 let f: Vec<&str> = fields[1..].iter().map(String::as_str).collect();
                 match trimmed_surface(&f, &parsed, &transforms, &surface_of, &model.surfaces) {
@@ -432,7 +454,7 @@ pub fn parse_iges(text: &str, name: &str) -> Result<IgesModel, IgesError> {
         return Err(err(
             String::new(),
             format!(
-                "no rational B-spline surface (entity 128) or parametric spline surface (114) found: {holds}; hitex reads 128 and 114 surfaces, trimmed by 144/142"
+                "no surface found: {holds}; hitex reads rational B-spline (128), parametric spline (114), revolved (120) and tabulated (122) surfaces, trimmed by 144/142"
             ),
         ));
     }
@@ -1110,6 +1132,154 @@ type Range = ((f64, f64), (f64, f64));
 
 /// Entity 128 fields after the type: K1, K2, M1, M2, PROP1–5, knots S, knots
 /// T, weights, control points, U0, U1, V0, V1.
+/// The 3-D curve of entry `k` (110 line, 100 circular arc, 126 rational
+/// B-spline curve) as an exact rational B-spline, its own matrix (124)
+/// applied, with the parameter range the record gives it (126: V0..V1,
+/// within its knots; 100: its angles; 110: 0..1).
+fn space_curve(k: usize, parsed: &Parsed, transforms: &[i64]) -> Result<(Curve, (f64, f64)), String> {
+    let (ty, fields, _) = &parsed[k];
+    let f: Vec<&str> = fields.iter().skip(1).map(String::as_str).collect();
+    let at = format!("entity {ty} (entry {})", k + 1);
+    let real = |i: usize| -> Result<f64, String> {
+        f.get(i)
+            .and_then(|s| num(s))
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("{at}: field {} is not a number", i + 2))
+    };
+    let p3 = |i: usize| -> Result<DVec3, String> { Ok(DVec3::new(real(i)?, real(i + 1)?, real(i + 2)?)) };
+    // degree, knots, Cartesian control points with weights, parameter range
+    type Parts = (usize, Vec<f64>, Vec<(DVec3, f64)>, (f64, f64));
+    let (degree, knots, mut pts, range): Parts = match ty {
+        110 => (1, vec![0.0, 0.0, 1.0, 1.0], vec![(p3(0)?, 1.0), (p3(3)?, 1.0)], (0.0, 1.0)),
+        100 => {
+            let (zt, c) = (real(0)?, DVec2::new(real(1)?, real(2)?));
+            let (a, b) = (DVec2::new(real(3)?, real(4)?) - c, DVec2::new(real(5)?, real(6)?) - c);
+            let r = a.length();
+            if r.is_nan() || r <= 0.0 {
+                return Err(format!("{at}: the arc's start is its centre"));
+            }
+            // counterclockwise from start to end; the same point: the whole circle
+            let a0 = a.y.atan2(a.x);
+            let mut a1 = b.y.atan2(b.x);
+            while a1 <= a0 + 1e-12 {
+                a1 += std::f64::consts::TAU;
+            }
+            let arc = Arc::new(a0, a1).map_err(|m| format!("{at}: {m}"))?;
+            let (knots, unit) = arc.control();
+            let pts = unit.iter().map(|&(x, y, w)| (DVec3::new(c.x + r * x, c.y + r * y, zt), w)).collect();
+            (2, knots, pts, (a0, a1))
+        }
+        126 => {
+            let int = |i: usize, what: &str| -> Result<usize, String> {
+                let v = real(i)?;
+                if v.fract() != 0.0 || !(0.0..=f.len() as f64).contains(&v) {
+                    return Err(format!("{at}: {what} = {v} is not a count the record can hold"));
+                }
+                Ok(v as usize)
+            };
+            let (upper, degree) = (int(0, "K")?, int(1, "M")?);
+            if !(1..=MAX_DEGREE).contains(&degree) || upper < degree {
+                return Err(format!("{at}: degree M = {degree} with K = {upper} (needs 1 ≤ M ≤ {MAX_DEGREE}, M ≤ K)"));
+            }
+            let n = upper + 1;
+            let nk = n + degree + 1;
+            // declared sizes against the record before allocating
+            if 6 + nk + 4 * n + 2 > f.len() {
+                return Err(format!(
+                    "{at}: {n} control points of degree {degree} need more fields than the record's {}",
+                    f.len()
+                ));
+            }
+            let knots: Vec<f64> = (0..nk).map(|i| real(6 + i)).collect::<Result<_, _>>()?;
+            if knots.windows(2).any(|w| w[1] < w[0]) {
+                return Err(format!("{at}: the knots decrease"));
+            }
+            let mut pts = Vec::with_capacity(n);
+            for i in 0..n {
+                let w = real(6 + nk + i)?;
+                if w <= 0.0 {
+                    return Err(format!("{at}: weight {i} is {w}, not positive"));
+                }
+                pts.push((p3(6 + nk + n + 3 * i)?, w));
+            }
+            let (d0, d1) = (knots[degree], knots[n]);
+            if d1 <= d0 {
+                return Err(format!("{at}: the knots span no parameter range"));
+            }
+            let (v0, v1) =
+                (real(6 + nk + 4 * n).unwrap_or(d0).clamp(d0, d1), real(7 + nk + 4 * n).unwrap_or(d1).clamp(d0, d1));
+            (degree, knots, pts, if v1 > v0 { (v0, v1) } else { (d0, d1) })
+        }
+        other => {
+            return Err(format!(
+                "the curve is entity {other} ({}, entry {}); hitex sweeps lines (110), circular arcs (100) and B-spline curves (126)",
+                entity_name(*other),
+                k + 1
+            ));
+        }
+    };
+    if let Some(m) = transform_of(k, transforms, parsed)? {
+        for (p, _) in &mut pts {
+            let q = *p;
+            *p = DVec3::new(
+                m[0][0] * q.x + m[0][1] * q.y + m[0][2] * q.z + m[0][3],
+                m[1][0] * q.x + m[1][1] * q.y + m[1][2] * q.z + m[1][3],
+                m[2][0] * q.x + m[2][1] * q.y + m[2][2] * q.z + m[2][3],
+            );
+        }
+    }
+    let pw = pts.iter().map(|(p, w)| [p.x * w, p.y * w, p.z * w, *w]).collect();
+    Ok((Curve::Spline { degree, knots, pw }, range))
+}
+
+/// Entity 120 fields after the type: L (the axis, a line 110), C (the
+/// generatrix), SA, TA (start and terminate angles, radians). The
+/// generatrix turned about the axis (counterclockwise looking down it from
+/// its end), exactly: u the angle (rational quadratic arcs), v the curve's
+/// parameter.
+fn revolution(f: &[&str], parsed: &Parsed, transforms: &[i64]) -> Result<(NurbsSurface, Range), String> {
+    let get = |i: usize| f.get(i).copied().ok_or_else(|| format!("record ends before field {}", i + 2));
+    let axis = entity_at(get(0)?, parsed.len())?;
+    if parsed[axis].0 != 110 {
+        return Err(format!("its axis (entry {}) is entity {}, not a line (110)", axis + 1, parsed[axis].0));
+    }
+    let (line, _) = space_curve(axis, parsed, transforms)?;
+    let (p1, p2) = (line.point(0.0), line.point(1.0));
+    if (p2 - p1).length() <= 0.0 {
+        return Err("its axis has zero length".into());
+    }
+    let (curve, range) = space_curve(entity_at(get(1)?, parsed.len())?, parsed, transforms)?;
+    let angle = |i: usize, what: &str| -> Result<f64, String> {
+        get(i).ok().and_then(num).filter(|x| x.is_finite()).ok_or_else(|| format!("{what} is not a number"))
+    };
+    let (sa, ta) = (angle(2, "the start angle SA")?, angle(3, "the terminate angle TA")?);
+    let domain = curve.range();
+    let surface = Surface::new(Frame::new(p1, p2 - p1, DVec3::X), Kind::Revolution { curve });
+    let (s, _) = surface.to_nurbs([(sa, ta), domain])?;
+    Ok((s, ((sa, ta), range)))
+}
+
+/// Entity 122 fields after the type: DE (the directrix curve), LX, LY, LZ
+/// (the end of the generatrix, which starts at the directrix's start): the
+/// directrix moved along the generatrix, exactly: u the curve's
+/// parameter, v from 0 to 1.
+fn tabulated(f: &[&str], parsed: &Parsed, transforms: &[i64]) -> Result<(NurbsSurface, Range), String> {
+    let get = |i: usize| f.get(i).copied().ok_or_else(|| format!("record ends before field {}", i + 2));
+    let (curve, range) = space_curve(entity_at(get(0)?, parsed.len())?, parsed, transforms)?;
+    let coord = |i: usize| -> Result<f64, String> {
+        get(i).ok().and_then(num).filter(|x| x.is_finite()).ok_or_else(|| format!("field {} is not a number", i + 2))
+    };
+    let end = DVec3::new(coord(1)?, coord(2)?, coord(3)?);
+    let axis = end - curve.point(range.0);
+    if axis.length() <= 0.0 {
+        return Err("its generatrix has zero length".into());
+    }
+    let domain = curve.range();
+    let surface = Surface::new(Frame::IDENTITY, Kind::Extrusion { curve, axis });
+    let (s, _) = surface.to_nurbs([domain, (0.0, 1.0)])?;
+    Ok((s, (range, (0.0, 1.0))))
+}
+
 /// Entity 114 fields after the type: CTYPE, PTYPE, M, N, the breakpoints
 /// TU(1..M+1) and TV(1..N+1), then 48 coefficients for each of the
 /// (M+1)×(N+1) patches, u index outer: per coordinate x, y, z the 16
@@ -1350,9 +1520,9 @@ mod tests {
         let e = parse_iges(&text, "part.igs").unwrap_err().to_string();
         assert_eq!(
             e,
-            "part.igs: no rational B-spline surface (entity 128) or parametric spline surface (114) found: \
-             it holds 2 × 110 (line), \
-             1 × 116 (point), 1 × 186 (manifold solid B-rep); hitex reads 128 and 114 surfaces, trimmed by 144/142"
+            "part.igs: no surface found: it holds 2 × 110 (line), \
+             1 × 116 (point), 1 × 186 (manifold solid B-rep); hitex reads rational B-spline (128), parametric \
+             spline (114), revolved (120) and tabulated (122) surfaces, trimmed by 144/142"
         );
     }
 
@@ -1735,6 +1905,126 @@ mod tests {
                     && e.contains("entity 114")
                     && e.contains(needle),
                 "{e}"
+            );
+        }
+    }
+
+    /// Points of patch `s` on a 9×9 grid of its parameter range.
+    fn grid(s: &IgesSurface) -> Vec<[f64; 3]> {
+        let ((u0, u1), (v0, v1)) = s.range;
+        (0..81)
+            .map(|k| s.surface.point(u0 + (u1 - u0) * (k % 9) as f64 / 8.0, v0 + (v1 - v0) * (k / 9) as f64 / 8.0))
+            .collect()
+    }
+
+    #[test]
+    fn surfaces_of_revolution_are_exact() {
+        // a line parallel to the z axis, turned a whole turn: a cylinder of radius 2
+        let m = parse_iges(
+            &iges_file(&[
+                (110, "110,0.,0.,0.,0.,0.,1.;"),
+                (110, "110,2.,0.,0.,2.,0.,3.;"),
+                (120, "120,1,3,0.,6.283185307179586;"),
+            ]),
+            "cyl.igs",
+        )
+        .unwrap();
+        assert_eq!(m.surfaces.len(), 1);
+        assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+        let pts = grid(&m.surfaces[0]);
+        assert!(pts.iter().all(|p| ((p[0].hypot(p[1])) - 2.0).abs() < 1e-12 && (-1e-12..=3.0 + 1e-12).contains(&p[2])));
+        assert!(pts.iter().any(|p| p[0] < -1.9) && pts.iter().any(|p| p[1] < -1.9), "a whole turn");
+        // a half circle (100) about the y axis: a unit sphere
+        let m = parse_iges(
+            &iges_file(&[
+                (110, "110,0.,-1.,0.,0.,1.,0.;"),
+                (100, "100,0.,0.,0.,0.,-1.,0.,1.;"),
+                (120, "120,1,3,0.,6.283185307179586;"),
+            ]),
+            "sphere.igs",
+        )
+        .unwrap();
+        let pts = grid(&m.surfaces[0]);
+        assert!(pts.iter().all(|p| (p[0].hypot(p[1]).hypot(p[2]) - 1.0).abs() < 1e-12), "{pts:?}");
+        // a quarter turn of a line crossing the axis' plane: a cone band between the angles
+        let m = parse_iges(
+            &iges_file(&[
+                (110, "110,0.,0.,0.,0.,0.,1.;"),
+                (110, "110,1.,0.,0.,2.,0.,1.;"),
+                (120, "120,1,3,0.,1.5707963267948966;"),
+            ]),
+            "cone.igs",
+        )
+        .unwrap();
+        for p in grid(&m.surfaces[0]) {
+            assert!((p[0].hypot(p[1]) - (1.0 + p[2])).abs() < 1e-12 && p[0] > -1e-12 && p[1] > -1e-12, "{p:?}");
+        }
+    }
+
+    #[test]
+    fn tabulated_cylinders_move_their_curve_along_the_generatrix() {
+        // a quadratic Bézier (126) moved to 5 above its start, then placed by a matrix (124)
+        let bezier = "126,2,2,1,0,1,0,0.,0.,0.,1.,1.,1.,1.,1.,1.,0.,0.,0.,1.,2.,0.,2.,0.,0.,0.,0.,1.,0.,0.,1.;";
+        let m = parse_iges(
+            &iges_file_placed(&[
+                (126, bezier, 0),
+                (124, "124,1.,0.,0.,10.,0.,1.,0.,0.,0.,0.,1.,0.;", 0),
+                (122, "122,1,0.,0.,5.;", 3),
+            ]),
+            "tab.igs",
+        )
+        .unwrap();
+        assert_eq!(m.surfaces.len(), 1);
+        let s = &m.surfaces[0];
+        assert_eq!(s.range, ((0.0, 1.0), (0.0, 1.0)));
+        for k in 0..25 {
+            let (t, v) = ((k % 5) as f64 / 4.0, (k / 5) as f64 / 4.0);
+            let c = [2.0 * t * (1.0 - t) + 2.0 * t * t, 4.0 * t * (1.0 - t)];
+            let p = s.surface.point(t, v);
+            let want = [10.0 + c[0], c[1], 5.0 * v];
+            assert!((0..3).all(|i| (p[i] - want[i]).abs() < 1e-12), "({t}, {v}): {p:?} {want:?}");
+        }
+    }
+
+    #[test]
+    fn swept_surfaces_that_cannot_be_read_are_skipped_with_a_warning() {
+        for (entities, needle) in [
+            (
+                vec![
+                    (126, "126,1,1,1,0,1,0,0.,0.,1.,1.,1.,1.,0.,0.,0.,1.,0.,0.,0.,1.;"),
+                    (110, "110,1.,0.,0.,1.,0.,1.;"),
+                    (120, "120,1,3,0.,1.;"),
+                ],
+                "not a line (110)",
+            ),
+            (
+                vec![
+                    (110, "110,0.,0.,0.,0.,0.,1.;"),
+                    (104, "104,1.,0.,1.,0.,0.,-1.,0.,1.,0.,-1.,0.;"),
+                    (120, "120,1,3,0.,1.;"),
+                ],
+                "hitex sweeps lines (110)",
+            ),
+            (
+                vec![(110, "110,0.,0.,0.,0.,0.,1.;"), (110, "110,1.,0.,0.,1.,0.,1.;"), (120, "120,1,3,1.,0.5;")],
+                "not within one turn",
+            ),
+            (vec![(110, "110,1.,0.,0.,1.,0.,1.;"), (122, "122,1,1.,0.,0.;")], "zero length"),
+            (vec![(110, "110,1.,0.,0.,1.,0.,1.;"), (122, "122,7,1.,0.,0.;")], "names no directory entry"),
+            (
+                vec![(110, "110,1.,0.,0.,1.,zz,1.;"), (122, "122,1,1.,0.,5.;")],
+                "entity 110 (entry 1): field 6 is not a number",
+            ),
+        ] {
+            let mut all = entities.clone();
+            all.push((128, BILINEAR));
+            let m = parse_iges(&iges_file(&all), "w.igs").unwrap();
+            assert_eq!(m.surfaces.len(), 1, "the rest of the file loads: {needle}");
+            let w: Vec<&String> = m.warnings.iter().filter(|w| w.contains("skipped:")).collect();
+            assert!(
+                w.len() == 1 && w[0].contains("directory entry") && w[0].contains(needle),
+                "{needle}: {:?}",
+                m.warnings
             );
         }
     }

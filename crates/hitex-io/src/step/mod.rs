@@ -17,7 +17,7 @@
 
 mod colors;
 mod faces;
-mod geometry;
+pub(crate) mod geometry;
 pub mod part21;
 
 use crate::iges::IgesSurface;
