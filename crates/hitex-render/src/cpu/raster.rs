@@ -897,10 +897,11 @@ fn raster_band<const K: usize, S: BlockShader<K>, Sm: pulp::Simd>(
         }
         o
     });
-    // the block's extreme offsets (its corners) for trivial reject and accept
+    // the block's extreme offsets (its corners 0, 7·sx, sy, 7·sx + sy) for
+    // trivial reject and accept: the sums of the extremes along each axis
     let corner = |i: usize| -> (i64, i64) {
-        let c = [0, 7 * step_x[i], step_y[i], 7 * step_x[i] + step_y[i]];
-        (c.iter().copied().min().unwrap_or(0), c.iter().copied().max().unwrap_or(0))
+        let (a, b) = (7 * step_x[i], step_y[i]);
+        (a.min(0) + b.min(0), a.max(0) + b.max(0))
     };
     let corners = [corner(0), corner(1), corner(2)];
     // the nearest eye distance of any fragment, less the early test's margin:
@@ -910,13 +911,18 @@ fn raster_band<const K: usize, S: BlockShader<K>, Sm: pulp::Simd>(
         let q = t.q[0].max(t.q[0] + t.q[1]).max(t.q[0] + t.q[2]) * (1.0 + 1e-6);
         (q > 0.0 && q.is_finite()).then(|| (1.0 / q - p.margin, p))
     });
+    // the edge functions at the first block's lane 0, stepped two rows a
+    // block row (exact: integers)
+    let (px, py) = (x0 as i64 * ONE + ONE / 2, y0 as i64 * ONE + ONE / 2);
+    let mut e_first: [i64; 3] = [0; 3];
+    for (i, (a, b)) in ea.iter().enumerate() {
+        e_first[i] = edge(x[*a], y[*a], x[*b], y[*b], px, py);
+    }
     let mut qy = y0;
     while qy < y1 {
-        let py = qy as i64 * ONE + ONE / 2;
-        let px = x0 as i64 * ONE + ONE / 2;
-        let mut e_row: [i64; 3] = [0; 3];
-        for (i, (a, b)) in ea.iter().enumerate() {
-            e_row[i] = edge(x[*a], y[*a], x[*b], y[*b], px, py);
+        let mut e_row = e_first;
+        for i in 0..3 {
+            e_first[i] += 2 * step_y[i];
         }
         // rows of this pair inside the band and the frame
         let row_ok = [qy < y_band + rows, qy + 1 < y_band + rows];
