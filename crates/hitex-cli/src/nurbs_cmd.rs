@@ -9,8 +9,10 @@ use hitex_render::{Job, Renderer};
 use std::path::PathBuf;
 use std::time::Instant;
 
-/// `hitex nurbs` subcommands.
+/// `hitex nurbs` subcommands (parsed once a run: the size of the largest
+/// costs nothing worth a box).
 #[derive(Subcommand)]
+#[allow(clippy::large_enum_variant)]
 pub enum NurbsCommand {
     /// Render a model (`surface`, `teapot`) or an IGES file.
     Render(RenderArgs),
@@ -139,9 +141,18 @@ pub struct RenderArgs {
     /// Which renderer to use.
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
     pub backend: Backend,
-    /// Tessellation density per patch side (only places fragments).
-    #[arg(long, default_value_t = 8)]
-    pub density: u32,
+    /// Tessellation of the mesh that places fragments (the surface itself
+    /// is evaluated exactly per pixel): `auto` fits each patch's grid to the
+    /// surface within `--mesh-chord` (at least 8 cells a side and one a knot
+    /// span, up to 256), so that curved silhouettes are not cut to the mesh's
+    /// polygons; N: an N×N grid on every patch.
+    #[arg(long, value_name = "auto|N", default_value = "auto")]
+    pub density: String,
+    /// With `--density auto`: the largest distance between the mesh and the
+    /// surface along its grid lines, model units (default: 1/4000 of the
+    /// model's size, a quarter pixel at 1000 pixels across).
+    #[arg(long, value_name = "UNITS")]
+    pub mesh_chord: Option<f64>,
     /// Isophote bands over 180° (`--bands` is the older name; image commands
     /// use `--bands` for colour channels).
     #[arg(long = "isophotes", visible_alias = "bands", default_value_t = 12)]
@@ -1092,7 +1103,83 @@ fn load(model: &str, chord: Option<f64>) -> Result<NurbsModel, CliError> {
     Ok(hitex_io::models::load_model_with(model, &hitex_io::models::LoadOptions { chord_tolerance: chord })?)
 }
 
-/// Prepares a model for rendering.
+/// How finely the mesh that places a model's fragments is cut.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Density {
+    /// Each patch's grid fitted to the surface ([`hitex_render::nurbs::fitted_grids`]).
+    Auto,
+    /// An N×N grid on every patch.
+    Fixed(u32),
+}
+
+/// `--density`: `auto` or a whole number of cells a side in 1…256.
+fn parse_density(s: &str) -> Result<Density, CliError> {
+    if s.eq_ignore_ascii_case("auto") {
+        return Ok(Density::Auto);
+    }
+    match s.parse::<u32>() {
+        Ok(n) if (1..=256).contains(&n) => Ok(Density::Fixed(n)),
+        _ => Err(CliError::Input(format!(
+            "--density {s} must be auto or a whole number in 1 to 256 (cells per patch side)"
+        ))),
+    }
+}
+
+/// The diagonal of the box around a model's surfaces, sampled on a 9×9
+/// grid over each patch's range (control points can lie far off a
+/// trimmed face).
+pub fn model_size(model: &NurbsModel) -> f64 {
+    let (surfaces, ranges) = (model.nurbs(), model.ranges());
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for (k, s) in surfaces.iter().enumerate() {
+        let ((u0, u1), (v0, v1)) = ranges.get(k).copied().unwrap_or_else(|| s.domain());
+        for j in 0..=8 {
+            for i in 0..=8 {
+                let p = s.point(u0 + (u1 - u0) * i as f64 / 8.0, v0 + (v1 - v0) * j as f64 / 8.0);
+                if p.iter().all(|x| x.is_finite()) {
+                    for t in 0..3 {
+                        lo[t] = lo[t].min(p[t]);
+                        hi[t] = hi[t].max(p[t]);
+                    }
+                }
+            }
+        }
+    }
+    let d = (0..3).map(|t| (hi[t] - lo[t]).powi(2)).sum::<f64>().sqrt();
+    if d.is_finite() { d } else { 0.0 }
+}
+
+/// Prepares a model for rendering with the mesh `density` asks for
+/// (`auto`: each patch fitted within `mesh_chord`, by default 1/4000 of
+/// the model's size), and says how it was cut (for the user).
+pub fn prepare_with(model: &NurbsModel, density: Density, mesh_chord: Option<f64>) -> (PreparedNurbs, String) {
+    if let Density::Fixed(n) = density {
+        return (prepare(model, n), format!("{n}×{n} cells a patch"));
+    }
+    let (surfaces, ranges) = (model.nurbs(), model.ranges());
+    let tol = mesh_chord.unwrap_or_else(|| model_size(model) / 4000.0);
+    let grids = hitex_render::nurbs::fitted_grids(&surfaces, &ranges, 8, tol);
+    let (lo, hi) = grids.iter().fold((u32::MAX, 0), |(lo, hi), &(a, b)| (lo.min(a.min(b)), hi.max(a.max(b))));
+    let mut p = PreparedNurbs::trimmed_grids(surfaces, &ranges, &model.trims(), &grids);
+    if model.colors.iter().any(Option::is_some) {
+        p.set_colors(&model.colors);
+    }
+    let how = if grids.is_empty() {
+        "auto".to_string()
+    } else {
+        // three significant digits, plainly where that stays short
+        let within = if (1e-3..1e6).contains(&tol) {
+            let decimals = (2 - tol.log10().floor() as i32).max(0) as usize;
+            format!("{tol:.decimals$}")
+        } else {
+            format!("{tol:.2e}")
+        };
+        format!("auto, {lo} to {hi} cells a patch side, within {within} model units of the surface")
+    };
+    (p, how)
+}
+
+/// Prepares a model for rendering on an N×N grid per patch.
 pub fn prepare(model: &NurbsModel, density: u32) -> PreparedNurbs {
     let mut p = PreparedNurbs::trimmed(model.nurbs(), &model.ranges(), &model.trims(), density);
     if model.colors.iter().any(Option::is_some) {
@@ -1110,11 +1197,11 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                     return Err(CliError::Input(format!("{flag} {v} must be in 1 to 1000")));
                 }
             }
-            if !(1..=256).contains(&a.density) {
-                return Err(CliError::Input(format!(
-                    "--density {} must be in 1 to 256 (triangle pairs per patch side)",
-                    a.density
-                )));
+            let density = parse_density(&a.density)?;
+            if let Some(c) = a.mesh_chord
+                && !(c.is_finite() && c > 0.0)
+            {
+                return Err(CliError::Input(format!("--mesh-chord {c} must be finite and positive (model units)")));
             }
             crate::image_out(&a.output)?;
             if !a.turn.is_finite() {
@@ -1143,7 +1230,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             for w in &model.warnings {
                 eprintln!("hitex: warning: {}: {w}", model.name);
             }
-            let mut p = prepare(&model, a.density);
+            let (mut p, mesh) = prepare_with(&model, density, a.mesh_chord);
             p.mode = a.mode.into();
             p.bands = a.bands;
             p.stripes = a.stripes;
@@ -1232,6 +1319,11 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 },
                 a.turn,
                 a.elevation
+            );
+            say!(
+                "mesh placing the fragments: {} ({}; --density N for a fixed grid)",
+                crate::count(p.indices.len() / 3, "triangle", "triangles"),
+                mesh
             );
             if p.mode == NurbsMode::Radius {
                 say!(

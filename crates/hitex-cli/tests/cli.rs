@@ -1015,3 +1015,36 @@ fn check_reports_faces_lying_on_each_other_and_edges_of_three_faces() {
         );
     }
 }
+
+/// `nurbs render` fits the mesh that places fragments to the surface by
+/// default and says how it cut it; `--density N` keeps a fixed N×N grid, and
+/// a tighter `--mesh-chord` cuts finer.
+#[test]
+fn nurbs_render_fits_its_mesh_and_says_so() {
+    let d = tmp("mesh-fit");
+    let out = d.join("t.png");
+    let triangles = |extra: &[&str]| -> (usize, String) {
+        let mut args =
+            vec!["nurbs", "render", "teapot", "--size", "64x48", "--backend", "cpu", "-o", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let o = hitex(&args);
+        assert!(o.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&o.stderr));
+        let text = String::from_utf8_lossy(&o.stdout).into_owned();
+        let line =
+            text.lines().find(|l| l.starts_with("mesh placing the fragments: ")).expect("a mesh line").to_string();
+        let n: String = line["mesh placing the fragments: ".len()..]
+            .chars()
+            .filter(|c| *c != ',')
+            .take_while(char::is_ascii_digit)
+            .collect();
+        (n.parse().unwrap(), line)
+    };
+    let (auto, line) = triangles(&[]);
+    assert!(line.contains("(auto, 8 to ") && line.contains("model units of the surface"), "{line}");
+    let (fixed, line) = triangles(&["--density", "8"]);
+    assert!(line.contains("8×8 cells a patch"), "{line}");
+    // the teapot's 32 patches, 8×8 cells of two triangles, its seams matched
+    assert!((32 * 8 * 8 * 2..32 * 8 * 8 * 3).contains(&fixed), "{line}");
+    let (fine, line) = triangles(&["--mesh-chord", "0.0005"]);
+    assert!(auto > fixed && fine > auto, "{fixed} fixed, {auto} auto, {fine} with a tighter chord: {line}");
+}

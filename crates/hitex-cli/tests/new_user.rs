@@ -694,6 +694,8 @@ fn second_pass_defects_stay_fixed() {
     std::fs::write(d.join("nd.asc"), "ncols 3\nnrows 3\nxllcorner 0\nyllcorner 0\ncellsize 30\nNODATA_value -9999\n-9999 -9999 -9999\n-9999 -9999 -9999\n-9999 -9999 -9999\n").unwrap();
     for (args, flag) in [
         (vec!["nurbs", "render", "teapot", "--density", "0", "-o", &p("x.png")[..]], "--density"),
+        (vec!["nurbs", "render", "teapot", "--density", "fine", "-o", &p("x.png")[..]], "--density"),
+        (vec!["nurbs", "render", "teapot", "--mesh-chord=-1", "-o", &p("x.png")[..]], "--mesh-chord"),
         (vec!["nurbs", "render", "teapot", "--stripes", "0", "-o", &p("x.png")[..]], "--stripes"),
         (vec!["terrain", "render", "--dem", dem, "--exaggeration=-3", "-o", &p("x.png")[..]], "--exaggeration"),
         (vec!["terrain", "render", "--dem", &p("nd.asc")[..], "-o", &p("x.png")[..]], "no elevation sample"),

@@ -517,6 +517,93 @@ impl Default for ModelView {
     }
 }
 
+/// Most triangles [`fitted_grids`] gives a model (about 200 MB of
+/// vertices and indices at the largest).
+pub const MAX_FITTED_TRIANGLES: u64 = 1 << 22;
+
+/// Each patch's tessellation grid (cells along u, along v) such that the
+/// mesh that places fragments lies within `tol` model units of the exact
+/// surface along its grid lines: at least `min` cells a side and one a
+/// knot span, refined per direction until the largest sag of a cell's edge
+/// (the distance between the surface at the edge's middle and the chord's
+/// middle, over lines across the patch) is at most `tol`, up to 256 cells a
+/// side. Where the mesh falls short of the surface (a convex silhouette
+/// seen between grid lines), the exact fragments beyond it are not drawn:
+/// a whole-turn cylinder on an 8×8 grid loses a polygon's sag (7.6 % of
+/// its radius) at its silhouette, one fitted to a quarter pixel draws the
+/// circle. A model whose grids would exceed [`MAX_FITTED_TRIANGLES`] has
+/// every side scaled down evenly to fit (the sag then exceeds `tol`).
+pub fn fitted_grids(surfaces: &[NurbsSurface], ranges: &[ParamRange], min: u32, tol: f64) -> Vec<(u32, u32)> {
+    use rayon::prelude::*;
+    let min = min.clamp(1, 256);
+    let tol = if tol.is_finite() && tol > 0.0 { tol } else { f64::MAX };
+    let grids: Vec<(u32, u32)> = surfaces
+        .par_iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let ((u0, u1), (v0, v1)) = ranges.get(k).copied().unwrap_or_else(|| s.domain());
+            // knot spans inside the range: a grid line on every knot would
+            // need more, one cell a span at least
+            let spans = |knots: &[f64], a: f64, b: f64| -> u32 {
+                let mut inner: Vec<f64> = knots.iter().copied().filter(|&t| t > a && t < b).collect();
+                inner.dedup();
+                (inner.len() as u32 + 1).min(256)
+            };
+            let mut nu = min.max(spans(&s.knots_u, u0, u1));
+            let mut nv = min.max(spans(&s.knots_v, v0, v1));
+            // refine each direction over lines across the other one's grid
+            for _ in 0..4 {
+                let su = grid_sag(s, (u0, u1), (v0, v1), nu, nv.min(32), false);
+                let sv = grid_sag(s, (v0, v1), (u0, u1), nv, nu.min(32), true);
+                let grow = |n: u32, sag: f64| -> u32 {
+                    if sag <= tol || n >= 256 {
+                        n
+                    } else {
+                        // a sag falls with the square of the cells a side
+                        let want = (n as f64 * (sag / tol).sqrt() * 1.05).ceil();
+                        (want.min(256.0) as u32).max(n + 1)
+                    }
+                };
+                let (gu, gv) = (grow(nu, su), grow(nv, sv));
+                if (gu, gv) == (nu, nv) {
+                    break;
+                }
+                (nu, nv) = (gu, gv);
+            }
+            (nu, nv)
+        })
+        .collect();
+    let total: u64 = grids.iter().map(|&(a, b)| 2 * a as u64 * b as u64).sum();
+    if total <= MAX_FITTED_TRIANGLES {
+        return grids;
+    }
+    let f = (MAX_FITTED_TRIANGLES as f64 / total as f64).sqrt();
+    grids.iter().map(|&(a, b)| (((a as f64 * f) as u32).max(1), ((b as f64 * f) as u32).max(1))).collect()
+}
+
+/// The largest sag of the `n` cells along one direction of a patch (its
+/// range `along`), over `lines` + 1 lines at equal steps of the other
+/// (`across`); `v_first`: the direction is v. Non-finite points are passed over.
+fn grid_sag(s: &NurbsSurface, along: (f64, f64), across: (f64, f64), n: u32, lines: u32, v_first: bool) -> f64 {
+    let at = |t: f64, c: f64| if v_first { s.point(c, t) } else { s.point(t, c) };
+    let step = |r: (f64, f64), i: f64, m: u32| r.0 + (r.1 - r.0) * i / m as f64;
+    let mut worst = 0.0f64;
+    for j in 0..=lines {
+        let c = step(across, j as f64, lines);
+        let mut a = at(along.0, c);
+        for i in 0..n {
+            let b = at(step(along, (i + 1) as f64, n), c);
+            let m = at(step(along, i as f64 + 0.5, n), c);
+            let d = (0..3).map(|t| (m[t] - 0.5 * (a[t] + b[t])).powi(2)).sum::<f64>().sqrt();
+            if d.is_finite() {
+                worst = worst.max(d);
+            }
+            a = b;
+        }
+    }
+    worst
+}
+
 /// For each boundary polyline (patch, side, density, points), whether
 /// another side's polyline has every one of its points within `tol`
 /// (neighbours sampled alike, whose tessellations already meet).
@@ -695,6 +782,29 @@ impl PreparedNurbs {
 
     /// Like [`PreparedNurbs::new`] with a tessellation density per patch.
     pub fn with_densities(surfaces: Vec<NurbsSurface>, ranges: &[ParamRange], densities: &[u32]) -> Self {
+        let grids: Vec<(u32, u32)> = densities.iter().map(|&d| (d, d)).collect();
+        Self::with_grids(surfaces, ranges, &grids)
+    }
+
+    /// Like [`PreparedNurbs::trimmed`] with each patch's own grid, cells
+    /// along u and along v (e.g. from [`fitted_grids`]); a patch beyond
+    /// `grids` takes 8×8, sides are clamped to 1…256.
+    pub fn trimmed_grids(
+        surfaces: Vec<NurbsSurface>,
+        ranges: &[ParamRange],
+        trims: &[TrimLoops],
+        grids: &[(u32, u32)],
+    ) -> Self {
+        let mut p = Self::with_grids(surfaces, ranges, grids);
+        if trims.iter().any(|t| !t.is_empty()) {
+            p.set_trims(trims);
+        }
+        p
+    }
+
+    /// Like [`PreparedNurbs::new`] with a grid per patch: `grids[k]` cells
+    /// along u and along v (8×8 beyond the slice; each side clamped to 1…256).
+    pub fn with_grids(surfaces: Vec<NurbsSurface>, ranges: &[ParamRange], grids: &[(u32, u32)]) -> Self {
         let mut vertices = Vec::new();
         let mut indices = Vec::new();
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
@@ -702,11 +812,12 @@ impl PreparedNurbs {
         let mut deviation = 0.0f32;
         for (k, s) in surfaces.iter().enumerate() {
             let ((u0, u1), (v0, v1)) = ranges.get(k).copied().unwrap_or_else(|| s.domain());
-            let density = densities.get(k).copied().unwrap_or(8).clamp(1, 256);
+            let (nu, nv) = grids.get(k).copied().unwrap_or((8, 8));
+            let (nu, nv) = (nu.clamp(1, 256), nv.clamp(1, 256));
             let base = vertices.len() as u32;
             let grid =
-                |a: f64, b: f64| (0..=density).map(|i| a + (b - a) * i as f64 / density as f64).collect::<Vec<f64>>();
-            let (us, vs) = (grid(u0, u1), grid(v0, v1));
+                |a: f64, b: f64, n: u32| (0..=n).map(|i| a + (b - a) * i as f64 / n as f64).collect::<Vec<f64>>();
+            let (us, vs) = (grid(u0, u1, nu), grid(v0, v1, nv));
             for &v in &vs {
                 for &u in &us {
                     let p = s.point(u, v);
@@ -726,9 +837,9 @@ impl PreparedNurbs {
                     });
                 }
             }
-            let row = density + 1;
-            for j in 0..density {
-                for i in 0..density {
+            let row = nu + 1;
+            for j in 0..nv {
+                for i in 0..nu {
                     let a = base + j * row + i;
                     indices.extend_from_slice(&[a, a + 1, a + row, a + 1, a + row + 1, a + row]);
                     // the deviation at the cell's centre from its corners' mean
@@ -748,6 +859,8 @@ impl PreparedNurbs {
             }
             // the boundary polylines, for the fans below
             for side in 0..4 {
+                // sides 0 and 1 run along v, 2 and 3 along u
+                let density = if side < 2 { nv } else { nu };
                 let pts = (0..=density as usize)
                     .map(|i| {
                         let (u, v) = (

@@ -869,3 +869,114 @@ fn reflection_shows_the_studio_on_both_backends() {
         assert_images("reflection-gpu", &gf, &f, GPU_VS_CPU_ALIASED);
     }
 }
+
+/// A whole turn of a cylinder as one patch (radius 1, z from 0 to 2): u
+/// around (four exact rational quadratic arcs), v along the axis.
+fn whole_turn_cylinder() -> hitex_core::nurbs::NurbsSurface {
+    let w = std::f64::consts::FRAC_1_SQRT_2;
+    let ring = [
+        (1.0, 0.0, 1.0),
+        (1.0, 1.0, w),
+        (0.0, 1.0, 1.0),
+        (-1.0, 1.0, w),
+        (-1.0, 0.0, 1.0),
+        (-1.0, -1.0, w),
+        (0.0, -1.0, 1.0),
+        (1.0, -1.0, w),
+        (1.0, 0.0, 1.0),
+    ];
+    let mut pts = Vec::new();
+    for z in [0.0, 2.0] {
+        pts.extend(ring.iter().map(|&(x, y, w)| [x, y, z, w]));
+    }
+    hitex_core::nurbs::NurbsSurface::new(
+        2,
+        1,
+        9,
+        2,
+        vec![0.0, 0.0, 0.0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1.0, 1.0, 1.0],
+        vec![0.0, 0.0, 1.0, 1.0],
+        pts,
+    )
+    .unwrap()
+}
+
+/// Fitted grids follow the sag of a circle, r (1 − cos(π/n)) ≤ tol, around a
+/// whole-turn cylinder and keep the least grid along its straight lines and
+/// on a plane; a patch of many knot spans gets a cell a span at least.
+#[test]
+fn fitted_grids_follow_the_curvature() {
+    use hitex_render::nurbs::fitted_grids;
+    let cyl = whole_turn_cylinder();
+    let plane = hitex_core::nurbs::NurbsSurface::new(
+        1,
+        1,
+        2,
+        2,
+        vec![0.0, 0.0, 1.0, 1.0],
+        vec![0.0, 0.0, 1.0, 1.0],
+        vec![[0.0, 0.0, 0.0, 1.0], [1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 1.0], [1.0, 1.0, 0.0, 1.0]],
+    )
+    .unwrap();
+    // a straight line cut into 40 knot spans (degree 1 in u)
+    let knots: Vec<f64> =
+        std::iter::once(0.0).chain((0..=40).map(|i| i as f64 / 40.0)).chain(std::iter::once(1.0)).collect();
+    let pts: Vec<[f64; 4]> = (0..2).flat_map(|j| (0..41).map(move |i| [i as f64 / 40.0, j as f64, 0.0, 1.0])).collect();
+    let spans = hitex_core::nurbs::NurbsSurface::new(1, 1, 41, 2, knots, vec![0.0, 0.0, 1.0, 1.0], pts).unwrap();
+    for tol in [1e-2, 1e-3, 1e-4] {
+        let surfaces = [cyl.clone(), plane.clone(), spans.clone()];
+        let ranges: Vec<_> = surfaces.iter().map(|s| s.domain()).collect();
+        let g = fitted_grids(&surfaces, &ranges, 8, tol);
+        // the least n with 1 − cos(π / n) ≤ tol (the rational arcs' speed
+        // varies, so the fitted grid may need a few more)
+        let least = (std::f64::consts::PI / (1.0 - tol).acos()).ceil() as u32;
+        assert!(g[0].0 >= least && g[0].0 <= least * 13 / 10 + 2, "tol {tol}: {} around, least {least}", g[0].0);
+        assert_eq!(g[0].1, 8, "tol {tol}: along the axis");
+        assert_eq!(g[1], (8, 8), "tol {tol}: plane");
+        assert_eq!(g[2], (40, 8), "tol {tol}: 40 knot spans");
+        // and the mesh's measured deviation is within the tolerance
+        let p = PreparedNurbs::with_grids(surfaces.to_vec(), &ranges, &g);
+        assert!((p.tess_deviation as f64) <= tol * 1.01, "tol {tol}: deviation {}", p.tess_deviation);
+    }
+    // a model past the triangle budget is scaled down evenly
+    let many = vec![cyl.clone(); 200];
+    let ranges: Vec<_> = many.iter().map(|s| s.domain()).collect();
+    let g = fitted_grids(&many, &ranges, 256, 1e-9);
+    let total: u64 = g.iter().map(|&(a, b)| 2 * a as u64 * b as u64).sum();
+    assert!(
+        total <= hitex_render::nurbs::MAX_FITTED_TRIANGLES && total > hitex_render::nurbs::MAX_FITTED_TRIANGLES / 2
+    );
+}
+
+/// Seen side-on, a whole-turn cylinder on a fitted mesh covers what a
+/// 256-cell reference covers to within a pixel in every row (the same
+/// pixels in this view);
+/// on an 8×8 grid its silhouette is the octagon's, pixels short.
+#[test]
+fn fitted_mesh_draws_the_exact_silhouette() {
+    let cpu = CpuRenderer::new();
+    let cyl = whole_turn_cylinder();
+    let range = [cyl.domain()];
+    // seen from a direction between two of the octagon's corners
+    let a = std::f32::consts::PI / 8.0;
+    let cam = hitex_core::scene::Camera {
+        position: glam::Vec3::new(6.0 * a.sin(), -6.0 * a.cos(), 1.0),
+        target: glam::Vec3::new(0.0, 0.0, 1.0),
+        up: glam::Vec3::Z,
+        fov_y_deg: 35.0,
+        near: 1.0,
+        far: 20.0,
+    };
+    let fitted = hitex_render::nurbs::fitted_grids(std::slice::from_ref(&cyl), &range, 8, 2.0 * 2f64.sqrt() / 4000.0);
+    let widths = |grid: (u32, u32)| -> Vec<usize> {
+        let p = PreparedNurbs::with_grids(vec![cyl.clone()], &range, &[grid]);
+        let f = cpu.render_nurbs(&p, &cam, 320, 320).unwrap();
+        let bg = f.rgba[..4].to_vec();
+        (0..320).map(|y| (0..320).filter(|&x| f.rgba[(y * 320 + x) * 4..][..4] != bg[..]).count()).collect()
+    };
+    let (reference, auto, coarse) = (widths((256, 8)), widths(fitted[0]), widths((8, 8)));
+    let worst = |w: &[usize]| w.iter().zip(&reference).map(|(a, b)| a.abs_diff(*b)).max().unwrap_or(0);
+    assert!(reference.iter().filter(|&&w| w > 50).count() > 100, "the cylinder fills the frame: {reference:?}");
+    assert!(worst(&auto) <= 1, "fitted {:?}: rows differ by up to {} pixels", fitted[0], worst(&auto));
+    assert!(worst(&coarse) >= 4, "8×8: rows differ by only {} pixels", worst(&coarse));
+}
