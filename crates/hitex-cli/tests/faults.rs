@@ -31,7 +31,8 @@ fn render_to(scene: &str, out: &Path) -> Output {
 /// line naming the image and `why`, and the old image byte-identical.
 fn old_image_survives(name: &str, kib: u32, fault: impl Fn(&Tmpfs), why: &str) -> Option<Tmpfs> {
     let fs = Tmpfs::mount(name, kib)?;
-    let scene = scene(&tmp(&format!("{name}-scene")));
+    let scene_dir = tmp(&format!("{name}-scene"));
+    let scene = scene(&scene_dir);
     let out = fs.dir.join("out.png");
     assert!(render_to(&scene, &out).status.success());
     let before = std::fs::read(&out).unwrap();

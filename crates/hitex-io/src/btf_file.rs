@@ -518,11 +518,8 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    fn tmpdir(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("hitex-io-btf-file-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
+    fn tmpdir(name: &str) -> crate::test_dir::TestDir {
+        crate::test_dir::TestDir::fresh(&format!("io-btf-file-{name}"))
     }
 
     fn small_btf(seed: u32) -> Btf {

@@ -1227,11 +1227,8 @@ mod tests {
     use super::*;
     use std::io::Write;
 
-    fn tmpdir(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("hitex-io-btf-images-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
+    fn tmpdir(name: &str) -> crate::test_dir::TestDir {
+        crate::test_dir::TestDir::fresh(&format!("io-btf-images-{name}"))
     }
 
     fn noise(seed: u32, n: usize) -> Vec<u8> {

@@ -1009,8 +1009,7 @@ mod tests {
 
     #[test]
     fn non_tiff_and_ungeoreferenced_files_are_errors() {
-        let dir = std::env::temp_dir().join(format!("hitex-geotiff-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::test_dir::TestDir::fresh("geotiff");
         let p = dir.join("x.tif");
         std::fs::write(&p, b"II*\0garbage").unwrap();
         assert!(load_geotiff(&p).unwrap_err().to_string().contains("x.tif"));
@@ -1072,8 +1071,7 @@ mod tests {
             assert!(e.contains("x.pgw"), "{e}");
         }
         // an image and its world file, found by name
-        let dir = std::env::temp_dir().join(format!("hitex-world-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::test_dir::TestDir::fresh("world");
         let png = dir.join("ortho.png");
         crate::save_png(&png, 2, 1, &[255, 0, 0, 255, 0, 0, 255, 255]).unwrap();
         assert!(load_world_image(&png).unwrap_err().to_string().contains("no world file"));

@@ -933,10 +933,8 @@ pub fn parse_store_meta(text: &str, path: &Path) -> Result<StoreMeta, IoError> {
 mod tests {
     use super::*;
 
-    fn tmp(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("hitex-gst-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        d
+    fn tmp(name: &str) -> crate::test_dir::TestDir {
+        crate::test_dir::TestDir::at(&format!("gst-{name}"))
     }
 
     #[test]

@@ -33,6 +33,8 @@ pub mod reproject;
 pub mod scene_file;
 pub mod step;
 pub mod stl;
+#[cfg(test)]
+mod test_dir;
 
 pub use iges::{IgesModel, IgesSurface, load_iges, parse_iges};
 pub use image_io::{create_output_dir, decode_image, load_image, output_error, save_png, write_atomic};

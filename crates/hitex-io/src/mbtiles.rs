@@ -415,11 +415,8 @@ mod tests {
     use super::*;
     use crate::gst::{BuildOptions, FolderSink, MemorySource, Store, build_into, read_tile};
 
-    fn tmp(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("hitex-mbtiles-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
+    fn tmp(name: &str) -> crate::test_dir::TestDir {
+        crate::test_dir::TestDir::fresh(&format!("mbtiles-{name}"))
     }
 
     /// A web-mercator store over 600×450 texels near Olinda at zoom 14 and a

@@ -106,12 +106,22 @@ fn locate_error(text: &str) -> Option<(usize, String)> {
 mod tests {
     use super::*;
 
-    fn write(name: &str, text: &str) -> std::path::PathBuf {
-        let d = std::env::temp_dir().join(format!("hitex-obj-{}", std::process::id()));
-        std::fs::create_dir_all(&d).unwrap();
+    /// `text` as file `name` in a folder of its own, which goes with the
+    /// returned guard (at the end of the statement that reads the file).
+    fn write(name: &str, text: &str) -> File {
+        let d = crate::test_dir::TestDir::fresh(&format!("obj-{name}"));
         let p = d.join(name);
         std::fs::write(&p, text).unwrap();
-        p
+        File(p, d)
+    }
+
+    struct File(std::path::PathBuf, #[allow(dead_code)] crate::test_dir::TestDir);
+
+    impl std::ops::Deref for File {
+        type Target = std::path::Path;
+        fn deref(&self) -> &std::path::Path {
+            &self.0
+        }
     }
 
     const QUAD: &str =

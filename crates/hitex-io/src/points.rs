@@ -120,8 +120,7 @@ mod tests {
 
     #[test]
     fn a_binary_file_is_named_not_quoted() {
-        let dir = std::env::temp_dir().join(format!("hitex-points-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::test_dir::TestDir::fresh("points");
         let tif = dir.join("l7.tif");
         std::fs::write(&tif, b"II*\0\x08\0\0\0\x11\0\0\x01\x03\0 1 2 3").unwrap();
         let e = load_points(&tif).unwrap_err().to_string();

@@ -697,8 +697,7 @@ mod tests {
 
     #[test]
     fn dems_written_in_a_local_frame_or_an_epsg_crs_read_back_the_same() {
-        let d = std::env::temp_dir().join(format!("hitex-dem-roundtrip-{}", std::process::id()));
-        std::fs::create_dir_all(&d).unwrap();
+        let d = crate::test_dir::TestDir::fresh("dem-roundtrip");
         let src = geographic(40, 30, |lon, lat| 100.0 * lon + lat);
         for to in [Crs::local(7.0, 46.0).unwrap(), Crs::from_epsg(32632).unwrap()] {
             let grid = covering_grid(&src, &Crs::wgs84(), &to, 1 << 20).unwrap();

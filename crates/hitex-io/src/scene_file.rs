@@ -67,15 +67,13 @@ pub fn load_scene(path: &Path) -> Result<Scene, IoError> {
 mod tests {
     use super::*;
 
-    fn dir() -> PathBuf {
-        let d = std::env::temp_dir().join(format!("hitex-scene-{}", std::process::id()));
-        std::fs::create_dir_all(&d).unwrap();
-        d
+    fn dir(name: &str) -> crate::test_dir::TestDir {
+        crate::test_dir::TestDir::fresh(&format!("scene-{name}"))
     }
 
     #[test]
     fn scene_with_files_loads_relative_paths() {
-        let d = dir();
+        let d = dir("1");
         std::fs::write(d.join("tri.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
             .unwrap();
         crate::save_png(&d.join("t.png"), 2, 2, &[255; 16]).unwrap();
@@ -89,7 +87,7 @@ mod tests {
 
     #[test]
     fn errors_name_the_scene_file() {
-        let d = dir();
+        let d = dir("2");
         std::fs::write(d.join("bad.toml"), "[camera]\nposition = [0, 0, 3]\ntarget = [0, 0, 0]\nzoom = 2\n").unwrap();
         let e = load_scene(&d.join("bad.toml")).unwrap_err().to_string();
         assert!(e.contains("bad.toml") && e.contains("zoom") && e.contains("line 4"), "{e}");

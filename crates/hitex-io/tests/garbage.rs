@@ -101,4 +101,5 @@ fn garbage_image_files_are_errors_not_panics() {
         std::fs::write(&cut, &png[..n]).unwrap();
         assert!(hitex_io::load_image(&cut, hitex_core::texture::ColorSpace::Srgb).is_err(), "{n} bytes accepted");
     }
+    let _ = std::fs::remove_dir_all(&dir);
 }

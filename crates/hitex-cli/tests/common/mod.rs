@@ -13,12 +13,40 @@ pub fn hitex(args: &[&str]) -> Output {
     }
 }
 
-/// An empty folder for test `name`, unique to this process.
-pub fn tmp(name: &str) -> PathBuf {
+/// An empty folder for test `name`, unique to this process; removed when
+/// the test ends, kept (for a look at what the command wrote) when it fails.
+pub fn tmp(name: &str) -> TestDir {
     let d = std::env::temp_dir().join(format!("hitex-cli-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
-    d
+    TestDir(d)
+}
+
+/// A test's folder: a path, removed with everything in it when dropped
+/// unless the thread is panicking (a failed test keeps its files).
+pub struct TestDir(PathBuf);
+
+impl std::ops::Deref for TestDir {
+    type Target = PathBuf;
+    fn deref(&self) -> &PathBuf {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for TestDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TestDir {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            eprintln!("kept {} for a look", self.0.display());
+        } else {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
 }
 
 /// The error lines hitex printed (the GL driver may add noise lines of its own).
@@ -35,13 +63,18 @@ pub fn error_lines(o: &Output) -> Vec<String> {
 pub struct Tmpfs {
     /// Where it is mounted.
     pub dir: PathBuf,
+    /// The test folder it is mounted in, removed after the unmount.
+    _parent: Option<TestDir>,
 }
 
 impl Tmpfs {
     /// Mounts `kib` KiB at a fresh folder for `name`; `None` (and SKIPPED on
     /// stderr) where mounting is not allowed, a panic then if `HITEX_REQUIRE_FAULTS=1`.
     pub fn mount(name: &str, kib: u32) -> Option<Tmpfs> {
-        Self::mount_at(&tmp(name).join("mnt"), kib)
+        let parent = tmp(name);
+        let mut fs = Self::mount_at(&parent.join("mnt"), kib)?;
+        fs._parent = Some(parent);
+        Some(fs)
     }
 
     /// Like [`Tmpfs::mount`], at `dir`.
@@ -63,7 +96,7 @@ impl Tmpfs {
             eprintln!("{msg}");
             return None;
         }
-        Some(Tmpfs { dir })
+        Some(Tmpfs { dir, _parent: None })
     }
 
     /// Fills the file system to the last byte.
