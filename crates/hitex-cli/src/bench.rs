@@ -267,7 +267,7 @@ pub fn run_case_fns(
         let mut level_frames: Vec<(SimdLevel, hitex_render::Frame)> = Vec::new();
         for (kind, r, level) in backends.iter_mut() {
             if let Some(l) = level {
-                hitex_render::cpu::simd::set_level(*l).map_err(CliError::Internal)?;
+                hitex_render::cpu::simd::set_level(*l).map_err(|e| CliError::Internal(e.to_string()))?;
             }
             let pb = progress(frames as u64, quiet);
             pb.set_prefix(match level {
@@ -318,7 +318,7 @@ pub fn run_case_fns(
             parity.push(Parity { case: case.clone(), mean_abs: d.mean_abs, p99: d.p99 });
         }
     }
-    hitex_render::cpu::simd::set_level(before).map_err(CliError::Internal)?;
+    hitex_render::cpu::simd::set_level(before).map_err(|e| CliError::Internal(e.to_string()))?;
     let mut ratios = Vec::new();
     for (case, _) in cases {
         let cpu = rows.iter().find(|r| &r.case == case && r.backend == "cpu");

@@ -361,8 +361,8 @@ pub fn build(a: BuildArgs) -> Result<(), CliError> {
             pixel: meta.pixel,
         };
         let fail = |m: String| CliError::Input(format!("{}: {m}", meta.source));
-        let (zoom, bounds) = hitex_io::reproject::mercator_zoom(&inner, &from).map_err(fail)?;
-        let merc = StoreMeta::mercator(bounds, zoom, &meta.source).map_err(fail)?;
+        let (zoom, bounds) = hitex_io::reproject::mercator_zoom(&inner, &from).map_err(|e| fail(e.message))?;
+        let merc = StoreMeta::mercator(bounds, zoom, &meta.source).map_err(|e| fail(e.message))?;
         let to = Crs::from_epsg(3857).map_err(|e| fail(e.to_string()))?;
         let grid = hitex_io::reproject::Grid {
             width: merc.width,
@@ -860,7 +860,7 @@ fn at_time(keys: &[PathKey], t: f64) -> PathKey {
 pub fn open_cache(store: Arc<Store>, budget: usize) -> Result<ResidentMaps, CliError> {
     let loader: Arc<hitex_core::residency::Loader> =
         Arc::new(move |k: MapKey| store.read_tile(k.z, k.x, k.y).map_err(|e| e.to_string()));
-    ResidentMaps::new(budget, loader).map_err(CliError::Input)
+    ResidentMaps::new(budget, loader).map_err(|e| CliError::Input(e.to_string()))
 }
 
 /// The camera of a path key over a store's data of `extent` finest texels

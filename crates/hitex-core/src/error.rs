@@ -27,6 +27,10 @@ pub enum CoreError {
     /// A TOML syntax or type error (line and column are in the message).
     #[error("{0}")]
     Toml(String),
+    /// A resident-map cache that cannot start: its level-0 map does not
+    /// load (the loader's message), or its loader thread cannot be made.
+    #[error("{0}")]
+    Residency(String),
 }
 
 /// Checks that `v` is finite, naming `key` in the error.

@@ -131,8 +131,9 @@ const ROOT: MapKey = MapKey { z: 0, x: 0, y: 0 };
 impl ResidentMaps {
     /// A cache of at most `budget` maps (at least 1) loading with `loader`;
     /// the level-0 map is loaded now and pinned — an error if it cannot be.
-    pub fn new(budget: usize, loader: Arc<Loader>) -> Result<Self, String> {
-        let root = loader(ROOT).map_err(|e| format!("the level-0 map cannot be loaded: {e}"))?;
+    pub fn new(budget: usize, loader: Arc<Loader>) -> Result<Self, crate::CoreError> {
+        let root =
+            loader(ROOT).map_err(|e| crate::CoreError::Residency(format!("the level-0 map cannot be loaded: {e}")))?;
         let (to_worker, requests) = channel::<MapKey>();
         let (done, from_worker) = channel::<Done>();
         let worker = std::thread::Builder::new()
@@ -145,7 +146,7 @@ impl ResidentMaps {
                     }
                 }
             })
-            .map_err(|e| format!("cannot start the map loader: {e}"))?;
+            .map_err(|e| crate::CoreError::Residency(format!("cannot start the map loader: {e}")))?;
         let mut maps = HashMap::new();
         maps.insert(ROOT, (Arc::new(root), 0));
         Ok(Self {

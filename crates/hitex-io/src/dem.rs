@@ -3,9 +3,9 @@
 //! `xmax`, `ymin`, `ymax` scalars when present). All come back as a
 //! one-band [`GeoRaster`]; declared sizes are checked against the data first.
 
-use crate::IoError;
 use crate::geotiff::{GeoRaster, MAX_SAMPLES, load_geotiff};
 use crate::limits::DEFLATE_RATIO;
+use crate::{DataError, IoError};
 use std::io::Read;
 use std::path::Path;
 
@@ -63,10 +63,10 @@ pub fn parse_elevation(bytes: &[u8], path: &Path) -> Result<GeoRaster, IoError> 
     let name = path.file_stem().and_then(|s| s.to_str()).unwrap_or("");
     match ext.as_str() {
         "tif" | "tiff" => crate::geotiff::parse_geotiff(std::io::Cursor::new(bytes), bytes.len() as u64, path),
-        "hgt" => parse_hgt(bytes, name).map_err(fmt),
-        "asc" => parse_ascii_grid(&String::from_utf8_lossy(bytes)).map_err(fmt),
+        "hgt" => hgt(bytes, name).map_err(fmt),
+        "asc" => ascii_grid(&String::from_utf8_lossy(bytes)).map_err(fmt),
         "npy" => parse_npy(bytes).map(|(w, h, data)| plain(w, h, data)).map_err(fmt),
-        "npz" => parse_npz(bytes).map_err(fmt),
+        "npz" => npz(bytes).map_err(fmt),
         _ => Err(fmt("unknown elevation format (expected .tif, .hgt, .asc, .npy or .npz)".into())),
     }
 }
@@ -89,7 +89,11 @@ fn plain(w: u32, h: u32, data: Vec<f32>) -> GeoRaster {
 
 /// SRTM: big-endian i16 squares of 1201² (3″) or 3601² (1″) posts; the file
 /// name (e.g. `N34W107`) gives the south-west corner; −32768 marks voids.
-pub fn parse_hgt(bytes: &[u8], name: &str) -> Result<GeoRaster, String> {
+pub fn parse_hgt(bytes: &[u8], name: &str) -> Result<GeoRaster, DataError> {
+    hgt(bytes, name).map_err(DataError::from)
+}
+
+fn hgt(bytes: &[u8], name: &str) -> Result<GeoRaster, String> {
     let n = match bytes.len() {
         l if l == 1201 * 1201 * 2 => 1201,
         l if l == 3601 * 3601 * 2 => 3601,
@@ -133,7 +137,11 @@ pub fn parse_hgt(bytes: &[u8], name: &str) -> Result<GeoRaster, String> {
 
 /// ESRI ASCII grid: `ncols`, `nrows`, `xllcorner|xllcenter`,
 /// `yllcorner|yllcenter`, `cellsize`, optional `NODATA_value`, then rows from north.
-pub fn parse_ascii_grid(text: &str) -> Result<GeoRaster, String> {
+pub fn parse_ascii_grid(text: &str) -> Result<GeoRaster, DataError> {
+    ascii_grid(text).map_err(DataError::from)
+}
+
+fn ascii_grid(text: &str) -> Result<GeoRaster, String> {
     let mut tokens = text.split_whitespace().peekable();
     let mut header = std::collections::HashMap::new();
     while let Some(t) = tokens.peek() {
@@ -284,7 +292,11 @@ pub fn parse_npy(bytes: &[u8]) -> Result<(u32, u32, Vec<f32>), String> {
 
 /// A numpy `.npz` archive: the largest 2-D array is the elevation; scalars
 /// `dx`, `dy`, `xmin`, `ymax` (as in `jacksboro_fault_dem.npz`) georeference it.
-pub fn parse_npz(bytes: &[u8]) -> Result<GeoRaster, String> {
+pub fn parse_npz(bytes: &[u8]) -> Result<GeoRaster, DataError> {
+    npz(bytes).map_err(DataError::from)
+}
+
+fn npz(bytes: &[u8]) -> Result<GeoRaster, String> {
     let mut zip =
         zip::ZipArchive::new(std::io::Cursor::new(bytes)).map_err(|e| format!("not a .npz (zip) archive: {e}"))?;
     let mut arrays = Vec::new();
@@ -351,7 +363,7 @@ mod tests {
             ("ncols 2\nnrows 1\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 x\n", "not a number"),
         ] {
             let e = parse_ascii_grid(bad).unwrap_err();
-            assert!(e.contains(needle), "{bad:?}: {e}");
+            assert!(e.message.contains(needle), "{bad:?}: {e}");
         }
     }
 
@@ -411,6 +423,6 @@ mod tests {
         let g = load_elevation(&p).unwrap();
         assert_eq!((g.width, g.height), (403, 344));
         assert!(g.pixel[0] > 0.0 && g.data.iter().all(|v| v.is_finite()));
-        assert!(parse_npz(b"not a zip").unwrap_err().contains("zip"));
+        assert!(parse_npz(b"not a zip").unwrap_err().message.contains("zip"));
     }
 }

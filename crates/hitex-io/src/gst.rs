@@ -300,7 +300,11 @@ impl StoreMeta {
     /// The metadata of a web-mercator pyramid at `zoom` over the EPSG:3857
     /// extent `bounds` (x min, y min, x max, y max, metres): level 0 is the
     /// deepest-zoom tile holding the whole extent, the finest level is `zoom`.
-    pub fn mercator(bounds: [f64; 4], zoom: u32, source: &str) -> Result<Self, String> {
+    pub fn mercator(bounds: [f64; 4], zoom: u32, source: &str) -> Result<Self, crate::DataError> {
+        Self::mercator_meta(bounds, zoom, source).map_err(crate::DataError::from)
+    }
+
+    fn mercator_meta(bounds: [f64; 4], zoom: u32, source: &str) -> Result<Self, String> {
         if zoom > MAX_MERCATOR_ZOOM {
             return Err(format!("zoom {zoom} is beyond {MAX_MERCATOR_ZOOM}"));
         }

@@ -71,6 +71,30 @@ pub fn binary_kind(head: &[u8]) -> Option<&'static str> {
     head.iter().take(4096).any(|&b| b == 0).then_some("binary data")
 }
 
+/// Data that cannot be read or used, with no file to name: bytes or text
+/// handed to a reader (`parse_*`; the `load_*` functions name the file as
+/// well, [`IoError::Format`] through [`DataError::in_file`]), or a raster
+/// that cannot be reprojected or tiled as asked.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("{message}")]
+pub struct DataError {
+    /// What is wrong, with record, field or line where known.
+    pub message: String,
+}
+
+impl From<String> for DataError {
+    fn from(message: String) -> Self {
+        Self { message }
+    }
+}
+
+impl DataError {
+    /// The error as one in `path`.
+    pub fn in_file(self, path: &std::path::Path) -> IoError {
+        IoError::Format { path: path.to_path_buf(), message: self.message }
+    }
+}
+
 /// A file that could not be read, parsed or written.
 #[derive(Debug, Error)]
 pub enum IoError {

@@ -12,8 +12,8 @@
 //! (linear RGB, 0 to 1, as a STEP style gives it); a model with neither is
 //! written as version 1, which both versions' readers read.
 
-use crate::IoError;
 use crate::iges::IgesSurface;
+use crate::{DataError, IoError};
 use hitex_core::nurbs::NurbsSurface;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -69,11 +69,15 @@ pub fn load_nurbs_json(path: &Path) -> Result<JsonModel, IoError> {
     }
     crate::limits::check_text_file(crate::limits::TextKind::Json, meta.len()).map_err(|e| fmt(e.to_string()))?;
     let text = std::fs::read_to_string(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
-    parse_nurbs_json(&text).map_err(fmt)
+    nurbs_json(&text).map_err(fmt)
 }
 
 /// Parses native JSON text; errors name the patch and field.
-pub fn parse_nurbs_json(text: &str) -> Result<JsonModel, String> {
+pub fn parse_nurbs_json(text: &str) -> Result<JsonModel, DataError> {
+    nurbs_json(text).map_err(DataError::from)
+}
+
+fn nurbs_json(text: &str) -> Result<JsonModel, String> {
     let f: FileJson = serde_json::from_str(text).map_err(|e| {
         // serde_json's message ends with the position; state it once, first
         let full = e.to_string();
@@ -532,7 +536,7 @@ mod tests {
         ];
         for (text, needle) in cases {
             let e = parse_nurbs_json(text).unwrap_err();
-            assert!(e.contains(needle), "{text}: {e}");
+            assert!(e.message.contains(needle), "{text}: {e}");
         }
     }
 }

@@ -9,8 +9,8 @@
 //! allocated; every error names the element and the record (and, in ASCII,
 //! the line) or the header line.
 
-use crate::IoError;
 use crate::stl::{ReferenceData, Triangle};
+use crate::{DataError, IoError};
 use std::path::Path;
 
 /// Longest header read, in bytes.
@@ -19,7 +19,7 @@ const MAX_HEADER: usize = 1 << 20;
 /// Reads a PLY file: its faces as triangles, or its vertices as points.
 pub fn load_ply(path: &Path) -> Result<ReferenceData, IoError> {
     let bytes = read(path)?;
-    parse_ply(&bytes).map_err(|message| IoError::Format { path: path.to_path_buf(), message })
+    parse_ply(&bytes).map_err(|e| e.in_file(path))
 }
 
 /// Reads the vertices of a PLY file as points (a scan's mesh measured at
@@ -247,7 +247,11 @@ impl Body<'_> {
 
 /// Parses PLY bytes: the faces as triangles when the file has any, else the
 /// vertices as points.
-pub fn parse_ply(bytes: &[u8]) -> Result<ReferenceData, String> {
+pub fn parse_ply(bytes: &[u8]) -> Result<ReferenceData, DataError> {
+    ply(bytes).map_err(DataError::from)
+}
+
+fn ply(bytes: &[u8]) -> Result<ReferenceData, String> {
     let (points, tris) = parse_parts(bytes)?;
     Ok(match tris {
         Some(t) => ReferenceData::Mesh(t),
@@ -486,7 +490,7 @@ mod tests {
 
     #[test]
     fn malformed_files_are_refused_with_the_record_or_line() {
-        let err = |b: &[u8]| parse_ply(b).expect_err("accepted a malformed file");
+        let err = |b: &[u8]| parse_ply(b).expect_err("accepted a malformed file").message;
         assert!(err(b"solid x\n").contains("not a PLY file"));
         assert!(err(SQUARE.replace("end_header\n", "").as_bytes()).contains("end_header"));
         assert!(err(SQUARE.replace("ascii", "binary").as_bytes()).contains("header line 2"));

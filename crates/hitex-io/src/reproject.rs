@@ -8,6 +8,7 @@
 //! whose interpolated centre departs from the exact one by more than
 //! [`MAX_INTERPOLATION_ERROR`] source pixels is transformed pixel by pixel.
 
+use crate::DataError;
 use crate::crs::Crs;
 use crate::geotiff::GeoRaster;
 use rayon::prelude::*;
@@ -84,7 +85,11 @@ fn central_pixel_in(g: &Grid, from: &Crs, to: &Crs) -> [f64; 2] {
 
 /// The grid in `to` that covers `src` (in `from`) with square-ish pixels of
 /// the source's ground size at its centre, and at most `max_pixels` pixels.
-pub fn covering_grid(src: &GeoRaster, from: &Crs, to: &Crs, max_pixels: u64) -> Result<Grid, String> {
+pub fn covering_grid(src: &GeoRaster, from: &Crs, to: &Crs, max_pixels: u64) -> Result<Grid, DataError> {
+    covering(src, from, to, max_pixels).map_err(DataError::from)
+}
+
+fn covering(src: &GeoRaster, from: &Crs, to: &Crs, max_pixels: u64) -> Result<Grid, String> {
     let g = Grid::of(src);
     let ([x0, x1, y0, y1], n) = extent_in(&g, from, to);
     if n < 8 {
@@ -289,7 +294,7 @@ pub fn co_register(
     let image_in_place = image.as_ref().zip(target.as_ref()).is_some_and(|((i, _), t)| image_in_place(i, t));
     let dem = match (&target, &dem_crs) {
         (Some(t), Ok(d)) if t != d => {
-            let grid = covering_grid(&dem, d, t, max_pixels).map_err(|m| err(dem_path, m))?;
+            let grid = covering_grid(&dem, d, t, max_pixels).map_err(|m| err(dem_path, m.message))?;
             let bytes = grid.width as u64 * grid.height as u64 * dem.bands as u64 * 4;
             crate::limits::check_cap("the reprojected DEM", Some(bytes)).map_err(|m| err(dem_path, m.to_string()))?;
             let r = reproject(&dem, d, t, &grid, t.epsg());
@@ -323,7 +328,7 @@ pub fn co_register(
             if &ic == t {
                 Some(img)
             } else {
-                let full = covering_grid(&img, &ic, t, u64::MAX).map_err(|m| err(path, m))?;
+                let full = covering_grid(&img, &ic, t, u64::MAX).map_err(|m| err(path, m.message))?;
                 let grid = clip_to(&full, t, &Grid::of(&dem), t).ok_or_else(|| {
                     err(path, format!("does not overlap {} after reprojection into {}", dem_path.display(), t.name()))
                 })?;
@@ -484,7 +489,11 @@ impl crate::gst::TileSource for ReprojectedSource {
 /// The web-mercator zoom whose texels are no larger than the ground size
 /// of `src`'s central pixel, and `src`'s extent in EPSG:3857 (x min, y min,
 /// x max, y max).
-pub fn mercator_zoom(src: &Grid, from: &Crs) -> Result<(u32, [f64; 4]), String> {
+pub fn mercator_zoom(src: &Grid, from: &Crs) -> Result<(u32, [f64; 4]), DataError> {
+    zoom_of(src, from).map_err(DataError::from)
+}
+
+fn zoom_of(src: &Grid, from: &Crs) -> Result<(u32, [f64; 4]), String> {
     let merc = Crs::from_epsg(3857).map_err(|e| e.to_string())?;
     let ([x0, x1, y0, y1], n) = extent_in(src, from, &merc);
     if n < 8 {

@@ -196,10 +196,12 @@ pub struct GenericTexture {
 
 impl GenericTexture {
     /// The MIP levels of a square power-of-two `image` (side ≤ 256).
-    pub fn new(image: Image) -> Result<Self, String> {
+    pub fn new(image: Image) -> Result<Self, crate::RenderError> {
         let side = image.width();
         if side != image.height() || !side.is_power_of_two() || side > MAP {
-            return Err(format!("a generic texture is square, a power of two and at most {MAP} texels"));
+            return Err(crate::RenderError::Invalid(format!(
+                "a generic texture is square, a power of two and at most {MAP} texels"
+            )));
         }
         let pyr = MipPyramid::build(image);
         let levels = (0..pyr.level_count())
@@ -239,7 +241,10 @@ impl GenericTexture {
                 c
             })
             .collect();
-        match Image::new(n, n, ColorSpace::Srgb, data).map_err(|e| e.to_string()).and_then(Self::new) {
+        match Image::new(n, n, ColorSpace::Srgb, data)
+            .map_err(|e| crate::RenderError::Invalid(e.to_string()))
+            .and_then(Self::new)
+        {
             Ok(t) => t,
             // 256×256 sRGB is always a valid generic texture
             Err(_) => Self { side: 1, levels: vec![Arc::new(vec![255; (MAP * MAP * 4) as usize])] },

@@ -223,9 +223,9 @@ pub fn level_for_gathers() -> SimdLevel {
 }
 
 /// Makes the CPU backend run at `l` from now on (process-wide).
-pub fn set_level(l: SimdLevel) -> Result<(), String> {
+pub fn set_level(l: SimdLevel) -> Result<(), crate::RenderError> {
     if !l.available() {
-        return Err(format!("this processor lacks {l}"));
+        return Err(crate::RenderError::Invalid(format!("this processor lacks {l}")));
     }
     LEVEL.store(l.code(), Ordering::Relaxed);
     FORCED.store(true, Ordering::Relaxed);
