@@ -8,22 +8,42 @@ use thiserror::Error;
 pub enum CoreError {
     /// A value that must be finite is NaN or infinite.
     #[error("{key}: value is not finite ({value})")]
-    NotFinite { key: String, value: f64 },
+    NotFinite {
+        /// The key or record.
+        key: String,
+        /// The value found.
+        value: f64,
+    },
     /// A value outside its allowed range.
     #[error("{key}: {message}")]
-    OutOfRange { key: String, message: String },
+    OutOfRange {
+        /// The key or record.
+        key: String,
+        /// The allowed range, and what was found.
+        message: String,
+    },
     /// The camera cannot form a view (target at the eye, zero or flat field of view, ...).
     #[error("degenerate camera: {0}")]
     DegenerateCamera(String),
     /// A mesh that cannot be drawn (no triangles, indices out of range, ...).
     #[error("invalid mesh '{name}': {message}")]
-    InvalidMesh { name: String, message: String },
+    InvalidMesh {
+        /// The mesh.
+        name: String,
+        /// What is wrong.
+        message: String,
+    },
     /// An image with impossible dimensions or data size.
     #[error("invalid image: {0}")]
     InvalidImage(String),
     /// A scene file that parses but refers to something that does not exist.
     #[error("{key}: {message}")]
-    InvalidScene { key: String, message: String },
+    InvalidScene {
+        /// The key.
+        key: String,
+        /// What it refers to, and why that fails.
+        message: String,
+    },
     /// A TOML syntax or type error (line and column are in the message).
     #[error("{0}")]
     Toml(String),

@@ -9,6 +9,7 @@
 //! Everything here is testable with `cargo test` alone and usable as a library.
 // a library prints nothing: it returns errors and warnings, or hands notices to a callback
 #![cfg_attr(not(test), deny(clippy::print_stdout, clippy::print_stderr))]
+#![warn(missing_docs, unreachable_pub)]
 
 pub mod btf;
 pub mod error;

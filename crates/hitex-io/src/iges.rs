@@ -1471,21 +1471,21 @@ mod tests {
     }
 
     /// A well-formed file of several entities with consistent pointers.
-    pub fn iges_file(entities: &[(i64, &str)]) -> String {
+    pub(crate) fn iges_file(entities: &[(i64, &str)]) -> String {
         let with: Vec<(i64, &str, usize)> = entities.iter().map(|(t, r)| (*t, *r, 0)).collect();
         iges_file_placed(&with)
     }
 
     /// Like [`iges_file`], each entity with the directory pointer of its
     /// transformation matrix (0: none).
-    pub fn iges_file_placed(entities: &[(i64, &str, usize)]) -> String {
+    pub(crate) fn iges_file_placed(entities: &[(i64, &str, usize)]) -> String {
         let with: Vec<(i64, &str, usize, i64)> = entities.iter().map(|&(t, r, m)| (t, r, m, 0)).collect();
         iges_file_coloured(&with)
     }
 
     /// Like [`iges_file_placed`], each entity with its colour number too
     /// (directory field 13: 0 none, 1–8 standard, −pointer to a 314).
-    pub fn iges_file_coloured(entities: &[(i64, &str, usize, i64)]) -> String {
+    pub(crate) fn iges_file_coloured(entities: &[(i64, &str, usize, i64)]) -> String {
         let mut s = line("generated", 'S', 1);
         s += &line("1H,,1H;;", 'G', 1);
         let mut dir = String::new();
@@ -1527,7 +1527,7 @@ mod tests {
     }
 
     /// A unit square trimmed by a circular hole of radius 0.3 at its centre.
-    pub fn holed_square() -> String {
+    pub(crate) fn holed_square() -> String {
         let w = std::f64::consts::FRAC_1_SQRT_2;
         let pts = [
             (1.0, 0.0),
@@ -1554,7 +1554,7 @@ mod tests {
     /// A unit square with two holes: a circle (entity 100) of radius 0.15
     /// about (0.3, 0.5), and an ellipse (entity 104) of semi-axes 0.12 and
     /// 0.25 placed about (0.7, 0.5) by a matrix (124).
-    pub fn arc_holes() -> String {
+    pub(crate) fn arc_holes() -> String {
         iges_file_placed(&[
             (128, BILINEAR, 0),
             (100, "100,0.,0.3,0.5,0.45,0.5,0.45,0.5;", 0),

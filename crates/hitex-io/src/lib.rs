@@ -10,6 +10,7 @@
 //! Every error names the file, and the record or key where known.
 // a library prints nothing: it returns errors and warnings, or hands notices to a callback
 #![cfg_attr(not(test), deny(clippy::print_stdout, clippy::print_stderr))]
+#![warn(missing_docs, unreachable_pub)]
 
 pub mod btf_file;
 pub mod btf_images;

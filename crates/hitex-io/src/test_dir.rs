@@ -6,19 +6,19 @@ use std::path::{Path, PathBuf};
 /// A test's folder under the system's temporary folder, unique to the
 /// process; removed with everything in it when dropped unless the thread
 /// is panicking.
-pub struct TestDir(PathBuf);
+pub(crate) struct TestDir(PathBuf);
 
 impl TestDir {
     /// `hitex-NAME-PID`, emptied and not created (for writers that make
     /// their own folder).
-    pub fn at(name: &str) -> Self {
+    pub(crate) fn at(name: &str) -> Self {
         let d = std::env::temp_dir().join(format!("hitex-{name}-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&d);
         TestDir(d)
     }
 
     /// `hitex-NAME-PID`, empty.
-    pub fn fresh(name: &str) -> Self {
+    pub(crate) fn fresh(name: &str) -> Self {
         let d = Self::at(name);
         if let Err(e) = std::fs::create_dir_all(&d.0) {
             panic!("cannot make {}: {e}", d.0.display());

@@ -9,6 +9,7 @@
 //! `#[repr(C)]` uniform blocks and the texture pyramids, byte for byte.
 // a library prints nothing: it returns errors and warnings, or hands notices to a callback
 #![cfg_attr(not(test), deny(clippy::print_stdout, clippy::print_stderr))]
+#![warn(missing_docs, unreachable_pub)]
 
 pub mod btf;
 pub mod compare;

@@ -378,7 +378,7 @@ pub(crate) mod tests {
     use proptest::prelude::*;
 
     /// A quarter cylinder of radius 1 as a rational quadratic in u, linear in v.
-    pub fn quarter_cylinder() -> NurbsSurface {
+    pub(crate) fn quarter_cylinder() -> NurbsSurface {
         let w = std::f64::consts::FRAC_1_SQRT_2;
         let mut pts = Vec::new();
         for z in [0.0, 2.0] {
@@ -390,7 +390,7 @@ pub(crate) mod tests {
     }
 
     /// A bicubic patch with non-uniform knots and a wavy net.
-    pub fn wavy() -> NurbsSurface {
+    pub(crate) fn wavy() -> NurbsSurface {
         let (nu, nv) = (6, 5);
         let mut pts = Vec::new();
         for j in 0..nv {

@@ -41,24 +41,24 @@ pub(crate) struct Model<'a> {
 pub(crate) type GeomResult<T> = Result<T, String>;
 
 impl<'a> Model<'a> {
-    pub fn record(&self, id: u64) -> GeomResult<&'a Record> {
+    pub(crate) fn record(&self, id: u64) -> GeomResult<&'a Record> {
         self.records.get(&id).ok_or_else(|| format!("#{id} is referenced but not defined"))
     }
 
     /// Parameters of `id` as entity `name` (a simple record or that part of a
     /// complex one).
-    pub fn params(&self, id: u64, name: &str) -> GeomResult<&'a [Param]> {
+    pub(crate) fn params(&self, id: u64, name: &str) -> GeomResult<&'a [Param]> {
         let r = self.record(id)?;
         r.part(name).ok_or_else(|| format!("#{id} is {}, expected {name}", r.type_name()))
     }
 
-    pub fn point(&self, id: u64) -> GeomResult<DVec3> {
+    pub(crate) fn point(&self, id: u64) -> GeomResult<DVec3> {
         let p = self.params(id, "CARTESIAN_POINT")?;
         let c = coords(p.get(1), id, "coordinates")?;
         Ok(DVec3::new(c[0], c.get(1).copied().unwrap_or(0.0), c.get(2).copied().unwrap_or(0.0)))
     }
 
-    pub fn direction(&self, id: u64) -> GeomResult<DVec3> {
+    pub(crate) fn direction(&self, id: u64) -> GeomResult<DVec3> {
         let p = self.params(id, "DIRECTION")?;
         let c = coords(p.get(1), id, "direction ratios")?;
         let d = DVec3::new(c[0], c.get(1).copied().unwrap_or(0.0), c.get(2).copied().unwrap_or(0.0));
@@ -68,7 +68,7 @@ impl<'a> Model<'a> {
     }
 
     /// `VECTOR(name, orientation, magnitude)` as a vector.
-    pub fn vector(&self, id: u64) -> GeomResult<DVec3> {
+    pub(crate) fn vector(&self, id: u64) -> GeomResult<DVec3> {
         let p = self.params(id, "VECTOR")?;
         let d = self.direction(reference(p.get(1), id, "orientation")?)?;
         let m = number(p.get(2), id, "magnitude")?;
@@ -76,7 +76,7 @@ impl<'a> Model<'a> {
     }
 
     /// `AXIS2_PLACEMENT_3D` (or `_2D`) as a right-handed frame.
-    pub fn frame(&self, id: u64) -> GeomResult<Frame> {
+    pub(crate) fn frame(&self, id: u64) -> GeomResult<Frame> {
         let r = self.record(id)?;
         if let Some(p) = r.part("AXIS2_PLACEMENT_2D") {
             let o = self.point(reference(p.get(1), id, "location")?)?;
@@ -100,7 +100,7 @@ impl<'a> Model<'a> {
     }
 
     /// A curve (3-D or in a surface's parameter plane, then z = 0).
-    pub fn curve(&self, id: u64, depth: usize) -> GeomResult<Curve> {
+    pub(crate) fn curve(&self, id: u64, depth: usize) -> GeomResult<Curve> {
         if depth > 16 {
             return Err(format!("#{id}: curves nest too deeply"));
         }
@@ -216,7 +216,7 @@ impl<'a> Model<'a> {
     }
 
     /// A face's surface.
-    pub fn surface(&self, id: u64, depth: usize) -> GeomResult<Surface> {
+    pub(crate) fn surface(&self, id: u64, depth: usize) -> GeomResult<Surface> {
         if depth > 8 {
             return Err(format!("#{id}: surfaces nest too deeply"));
         }
@@ -478,10 +478,10 @@ pub(crate) struct Frame {
 }
 
 impl Frame {
-    pub const IDENTITY: Frame = Frame { o: DVec3::ZERO, x: DVec3::X, y: DVec3::Y, z: DVec3::Z };
+    pub(crate) const IDENTITY: Frame = Frame { o: DVec3::ZERO, x: DVec3::X, y: DVec3::Y, z: DVec3::Z };
 
     /// From an axis and a reference direction (made orthogonal to the axis).
-    pub fn new(o: DVec3, z: DVec3, x_hint: DVec3) -> Frame {
+    pub(crate) fn new(o: DVec3, z: DVec3, x_hint: DVec3) -> Frame {
         let z = z.normalize();
         let mut x = x_hint - z * x_hint.dot(z);
         if x.length() < 1e-12 {
@@ -492,12 +492,12 @@ impl Frame {
     }
 
     /// The matrix taking frame coordinates to the parent's.
-    pub fn matrix(&self) -> DMat4 {
+    pub(crate) fn matrix(&self) -> DMat4 {
         DMat4::from_cols(self.x.extend(0.0), self.y.extend(0.0), self.z.extend(0.0), self.o.extend(1.0))
     }
 
     /// `q` in frame coordinates.
-    pub fn local(&self, q: DVec3) -> DVec3 {
+    pub(crate) fn local(&self, q: DVec3) -> DVec3 {
         let d = q - self.o;
         DVec3::new(d.dot(self.x), d.dot(self.y), d.dot(self.z))
     }
@@ -522,12 +522,12 @@ pub(crate) enum Curve {
 
 impl Curve {
     /// The period, for closed curves of a periodic parameter.
-    pub fn period(&self) -> Option<f64> {
+    pub(crate) fn period(&self) -> Option<f64> {
         matches!(self, Curve::Ellipse { .. }).then_some(TAU)
     }
 
     /// The curve's own parameter range (periodic: one turn from 0).
-    pub fn range(&self) -> (f64, f64) {
+    pub(crate) fn range(&self) -> (f64, f64) {
         match self {
             Curve::Line { .. } => (0.0, 1.0),
             Curve::Ellipse { .. } => (0.0, TAU),
@@ -536,7 +536,7 @@ impl Curve {
         }
     }
 
-    pub fn point(&self, t: f64) -> DVec3 {
+    pub(crate) fn point(&self, t: f64) -> DVec3 {
         match self {
             Curve::Line { o, d } => *o + *d * t,
             Curve::Ellipse { f, a, b } => f.o + f.x * (a * t.cos()) + f.y * (b * t.sin()),
@@ -564,7 +564,7 @@ impl Curve {
     }
 
     /// Pieces the curve has (a lower bound on the samples an edge needs).
-    pub fn pieces(&self, t0: f64, t1: f64) -> usize {
+    pub(crate) fn pieces(&self, t0: f64, t1: f64) -> usize {
         match self {
             Curve::Line { .. } => 1,
             // eight samples a turn before refinement
@@ -580,7 +580,7 @@ impl Curve {
 
     /// A parameter window covering the curve, `reach` either side of the
     /// point nearest `centre` where it is unbounded (a line).
-    pub fn window(&self, centre: DVec3, reach: f64) -> (f64, f64) {
+    pub(crate) fn window(&self, centre: DVec3, reach: f64) -> (f64, f64) {
         match self {
             Curve::Line { o, d } => {
                 let t = (centre - *o).dot(*d) / d.length_squared();
@@ -595,7 +595,7 @@ impl Curve {
     /// degree, knots, Cartesian control points with weights, and for an
     /// ellipse the arc that maps its angle to the B-spline's parameter.
     /// B-spline curves and polylines keep their whole parameter range.
-    pub fn to_nurbs(&self, (t0, t1): (f64, f64)) -> GeomResult<CurveNurbs> {
+    pub(crate) fn to_nurbs(&self, (t0, t1): (f64, f64)) -> GeomResult<CurveNurbs> {
         Ok(match self {
             Curve::Line { .. } => (1, vec![t0, t0, t1, t1], vec![(self.point(t0), 1.0), (self.point(t1), 1.0)], None),
             Curve::Ellipse { f, a, b } => {
@@ -620,13 +620,13 @@ impl Curve {
 
     /// Whether the curve is exactly the straight chord between any two of
     /// its points (a line, or a polyline sampled at its vertices).
-    pub fn is_straight(&self) -> bool {
+    pub(crate) fn is_straight(&self) -> bool {
         matches!(self, Curve::Line { .. })
     }
 
     /// The parameter of the curve point nearest `q` (the edge's vertices lie
     /// on it, up to the file's tolerance).
-    pub fn param_of(&self, q: DVec3) -> f64 {
+    pub(crate) fn param_of(&self, q: DVec3) -> f64 {
         match self {
             Curve::Line { o, d } => (q - *o).dot(*d) / d.length_squared(),
             Curve::Ellipse { f, a, b } => {
@@ -714,7 +714,7 @@ pub(crate) struct Surface {
 }
 
 impl Surface {
-    pub fn new(frame: Frame, kind: Kind) -> Surface {
+    pub(crate) fn new(frame: Frame, kind: Kind) -> Surface {
         Surface { frame, kind, bounds: None, near: (DVec3::ZERO, 1.0), patch: std::sync::OnceLock::new() }
     }
 
@@ -725,7 +725,7 @@ impl Surface {
     }
 
     /// Which parameters are periodic with period 2π.
-    pub fn periodic(&self) -> [bool; 2] {
+    pub(crate) fn periodic(&self) -> [bool; 2] {
         match &self.kind {
             Kind::Plane | Kind::Spline(_) => [false, false],
             Kind::Cylinder { .. } | Kind::Cone { .. } | Kind::Sphere { .. } => [true, false],
@@ -737,7 +737,7 @@ impl Surface {
 
     /// Which parameters are angles (in the file's plane-angle unit where the
     /// file gives them).
-    pub fn angular(&self) -> [bool; 2] {
+    pub(crate) fn angular(&self) -> [bool; 2] {
         match &self.kind {
             Kind::Sphere { .. } => [true, true],
             _ => self.periodic(),
@@ -769,7 +769,7 @@ impl Surface {
     }
 
     /// The point at parameters `(s, t)`.
-    pub fn point(&self, st: DVec2) -> DVec3 {
+    pub(crate) fn point(&self, st: DVec2) -> DVec3 {
         let f = &self.frame;
         let (s, t) = (st.x, st.y);
         let radial = |rho: f64, z: f64| f.o + (f.x * s.cos() + f.y * s.sin()) * rho + f.z * z;
@@ -795,7 +795,7 @@ impl Surface {
 
     /// The parameters of the point nearest `q`; periodic ones are taken
     /// within half a turn of `hint` when one is given.
-    pub fn project(&self, q: DVec3, hint: Option<DVec2>) -> DVec2 {
+    pub(crate) fn project(&self, q: DVec3, hint: Option<DVec2>) -> DVec2 {
         let l = self.frame.local(q);
         let near = |a: f64, h: Option<f64>| match h {
             Some(h) => a + TAU * ((h - a) / TAU).round(),
@@ -866,7 +866,7 @@ impl Surface {
 
     /// The natural parameter window where the surface is bounded without
     /// trims (sphere, torus, B-spline), if it has one.
-    pub fn natural_window(&self) -> Option<[(f64, f64); 2]> {
+    pub(crate) fn natural_window(&self) -> Option<[(f64, f64); 2]> {
         if self.bounds.is_some() {
             return self.bounds;
         }
@@ -884,7 +884,7 @@ impl Surface {
     /// The exact rational B-spline over the window `[s0, s1] × [t0, t1]` of
     /// the surface's own parameters, and the map from those parameters to
     /// the B-spline's.
-    pub fn to_nurbs(&self, win: [(f64, f64); 2]) -> GeomResult<(NurbsSurface, ParamMap)> {
+    pub(crate) fn to_nurbs(&self, win: [(f64, f64); 2]) -> GeomResult<(NurbsSurface, ParamMap)> {
         let [(s0, s1), (t0, t1)] = win;
         let f = &self.frame;
         let plane = |s: f64, t: f64| f.o + f.x * s + f.y * t;
@@ -970,13 +970,13 @@ pub(crate) struct ParamMap {
 }
 
 impl ParamMap {
-    pub fn apply(&self, st: DVec2) -> [f64; 2] {
+    pub(crate) fn apply(&self, st: DVec2) -> [f64; 2] {
         let f = |a: &Option<Arc>, x: f64| a.as_ref().map_or(x, |a| a.param(x));
         [f(&self.s, st.x), f(&self.t, st.y)]
     }
 
     /// The surface's own parameters at B-spline parameters `uv`.
-    pub fn invert(&self, uv: [f64; 2]) -> DVec2 {
+    pub(crate) fn invert(&self, uv: [f64; 2]) -> DVec2 {
         let f = |a: &Option<Arc>, x: f64| a.as_ref().map_or(x, |a| a.angle(x));
         DVec2::new(f(&self.s, uv[0]), f(&self.t, uv[1]))
     }
@@ -994,7 +994,7 @@ pub(crate) struct Arc {
 
 impl Arc {
     /// An arc of at most one turn (anything else is no face's window).
-    pub fn new(a0: f64, a1: f64) -> GeomResult<Arc> {
+    pub(crate) fn new(a0: f64, a1: f64) -> GeomResult<Arc> {
         if !(a0.is_finite() && a1.is_finite() && a1 > a0 && a1 - a0 <= TAU + 1e-9) {
             return Err(format!("an angular range from {a0} to {a1} rad is not within one turn"));
         }
@@ -1007,7 +1007,7 @@ impl Arc {
     }
 
     /// Knots and the unit circle's control points `(x, y, w)` (Cartesian).
-    pub fn control(&self) -> (Vec<f64>, Vec<(f64, f64, f64)>) {
+    pub(crate) fn control(&self) -> (Vec<f64>, Vec<(f64, f64, f64)>) {
         let d = self.step();
         let w = (0.5 * d).cos();
         let mut knots = vec![self.a0; 3];
@@ -1030,7 +1030,7 @@ impl Arc {
     /// rational quadratic piece of sweep Δ, tan(ψ/2) of the angle ψ from the
     /// piece's middle is linear in the piece's parameter τ ∈ [0, 1]:
     /// tan(ψ/2) = (2τ − 1)·tan(Δ/4).
-    pub fn param(&self, phi: f64) -> f64 {
+    pub(crate) fn param(&self, phi: f64) -> f64 {
         let d = self.step();
         let k = (((phi - self.a0) / d).floor().max(0.0) as usize).min(self.pieces - 1);
         let a = self.a0 + d * k as f64;
@@ -1040,7 +1040,7 @@ impl Arc {
     }
 
     /// The angle at B-spline parameter `u` (the inverse of [`Arc::param`]).
-    pub fn angle(&self, u: f64) -> f64 {
+    pub(crate) fn angle(&self, u: f64) -> f64 {
         let d = self.step();
         let k = (((u - self.a0) / d).floor().max(0.0) as usize).min(self.pieces - 1);
         let a = self.a0 + d * k as f64;

@@ -148,8 +148,6 @@ fn sums<const A: usize, const B: usize>(
     a
 }
 
-/// Whether (u, v) is cut away by the patch's trimming loops (even–odd rule
-/// over all edges; untrimmed patches keep everything).
 /// The shaded mode's default albedo (linear RGB).
 pub const DEFAULT_ALBEDO: [f32; 3] = [0.72, 0.75, 0.80];
 
@@ -161,6 +159,8 @@ pub fn albedo(t: &PackedNurbs, patch: usize) -> Vec3 {
     }
 }
 
+/// Whether (u, v) is cut away by the patch's trimming loops (even–odd rule
+/// over all edges; untrimmed patches keep everything).
 pub fn trimmed_away(t: &PackedNurbs, patch: usize, u: f32, v: f32) -> bool {
     let w = t.trim_width as usize;
     let n = t.trims[patch * w][0] as usize;
