@@ -1179,6 +1179,28 @@ pub fn prepare_with(model: &NurbsModel, density: Density, mesh_chord: Option<f64
     (p, how)
 }
 
+/// One line on the patches whose trims were simplified to fit the trim
+/// texture (`None` when none were).
+pub fn simplified_trims_warning(list: &[hitex_render::nurbs::TrimSimplified]) -> Option<String> {
+    let first = list.first()?;
+    let worst = list.iter().max_by(|a, b| a.tolerance.total_cmp(&b.tolerance)).unwrap_or(first);
+    let mut line = format!(
+        "the trimming loops of {} have more than the {} edges a patch holds and were simplified to fit \
+         (patch {}: {} edges to {}, within {:.1e} of its loops' box",
+        crate::count(list.len(), "patch", "patches"),
+        hitex_render::nurbs::MAX_TRIM_EDGES,
+        first.patch,
+        first.edges,
+        first.kept,
+        first.tolerance
+    );
+    if worst.patch != first.patch {
+        line += &format!("; the most on patch {}: {:.1e}", worst.patch, worst.tolerance);
+    }
+    line += ")";
+    Some(line)
+}
+
 /// Prepares a model for rendering on an N×N grid per patch.
 pub fn prepare(model: &NurbsModel, density: u32) -> PreparedNurbs {
     let mut p = PreparedNurbs::trimmed(model.nurbs(), &model.ranges(), &model.trims(), density);
@@ -1231,6 +1253,9 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
                 eprintln!("hitex: warning: {}: {w}", model.name);
             }
             let (mut p, mesh) = prepare_with(&model, density, a.mesh_chord);
+            if let Some(w) = simplified_trims_warning(&p.packed.trims_simplified) {
+                eprintln!("hitex: warning: {}: {w}", model.name);
+            }
             p.mode = a.mode.into();
             p.bands = a.bands;
             p.stripes = a.stripes;
@@ -1559,6 +1584,19 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn simplified_trims_are_named_in_one_line() {
+        use hitex_render::nurbs::TrimSimplified;
+        assert_eq!(simplified_trims_warning(&[]), None);
+        let a = TrimSimplified { patch: 3, edges: 20_004, kept: 8_000, tolerance: 2e-5 };
+        let b = TrimSimplified { patch: 9, edges: 9_000, kept: 8_100, tolerance: 4e-5 };
+        let one = simplified_trims_warning(&[a]).unwrap_or_default();
+        assert!(one.contains("of 1 patch have more than the 8191 edges"), "{one}");
+        assert!(one.contains("patch 3: 20004 edges to 8000, within 2.0e-5") && !one.contains("the most"), "{one}");
+        let two = simplified_trims_warning(&[a, b]).unwrap_or_default();
+        assert!(two.contains("2 patches") && two.contains("the most on patch 9: 4.0e-5"), "{two}");
+    }
 
     #[test]
     fn pull_directions_parse_and_bad_ones_are_refused() {

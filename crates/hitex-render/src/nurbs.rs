@@ -252,6 +252,9 @@ pub struct PackedNurbs {
     pub edges: Vec<[f32; 4]>,
     /// Texels per deviation row.
     pub deviation_width: u32,
+    /// The patches whose trimming loops held more than [`MAX_TRIM_EDGES`]
+    /// edges, simplified to fit by [`PackedNurbs::set_trims`].
+    pub trims_simplified: Vec<TrimSimplified>,
     /// Signed deviation from a reference, one row per patch: texel 0 = the
     /// grid's side G (0: none), then G×G values over the patch's parameter
     /// domain, v outer (`1 + j·G + i`), [`hitex_core::nurbs::deviation::NO_DATA`]
@@ -275,6 +278,62 @@ pub type TrimLoops = Vec<Vec<[f64; 2]>>;
 
 /// Most trimming edges per patch (the width of the trim texture).
 pub const MAX_TRIM_EDGES: usize = 8191;
+
+/// A patch whose trimming loops were simplified to fit [`MAX_TRIM_EDGES`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrimSimplified {
+    /// The patch.
+    pub patch: usize,
+    /// Edges its loops had.
+    pub edges: usize,
+    /// Edges kept.
+    pub kept: usize,
+    /// The largest distance between a loop as kept and as given, as a
+    /// fraction of the side of the loops' box in parameter space (u and v
+    /// each scaled by their own side).
+    pub tolerance: f64,
+}
+
+/// `l` simplified (Douglas–Peucker): the points farther than `eps` from
+/// the chord of the points kept around them are kept, first and last
+/// always; distances with u and v divided by `scale`.
+fn simplify(l: &[[f64; 2]], scale: [f64; 2], eps: f64) -> Vec<[f64; 2]> {
+    if l.len() < 3 {
+        return l.to_vec();
+    }
+    let p = |i: usize| [l[i][0] / scale[0], l[i][1] / scale[1]];
+    let mut keep = vec![false; l.len()];
+    keep[0] = true;
+    keep[l.len() - 1] = true;
+    let mut stack = vec![(0usize, l.len() - 1)];
+    while let Some((a, b)) = stack.pop() {
+        if b <= a + 1 {
+            continue;
+        }
+        let (pa, pb) = (p(a), p(b));
+        let d = [pb[0] - pa[0], pb[1] - pa[1]];
+        let len2 = d[0] * d[0] + d[1] * d[1];
+        let (mut far, mut at) = (-1.0f64, a + 1);
+        for i in a + 1..b {
+            let q = p(i);
+            let w = [q[0] - pa[0], q[1] - pa[1]];
+            // distance to the segment (to `a` where the chord has no length)
+            let t = if len2 > 0.0 { ((w[0] * d[0] + w[1] * d[1]) / len2).clamp(0.0, 1.0) } else { 0.0 };
+            let e = [w[0] - t * d[0], w[1] - t * d[1]];
+            let dist = (e[0] * e[0] + e[1] * e[1]).sqrt();
+            // NaN (a point that is not finite) is kept
+            if dist > far || dist.is_nan() {
+                (far, at) = (dist, i);
+            }
+        }
+        if far > eps || far.is_nan() {
+            keep[at] = true;
+            stack.push((a, at));
+            stack.push((at, b));
+        }
+    }
+    l.iter().zip(keep).filter_map(|(q, k)| k.then_some(*q)).collect()
+}
 
 impl PackedNurbs {
     /// Packs surfaces row by row.
@@ -312,6 +371,7 @@ impl PackedNurbs {
             trim_width: 1,
             trims: vec![[0.0, -1.0, -1.0, -1.0]; rows.max(1)],
             colors: vec![None; rows],
+            trims_simplified: Vec::new(),
             deviation_width: 1,
             deviation: vec![0.0; rows.max(1)],
             edges_width: 1,
@@ -408,14 +468,52 @@ impl PackedNurbs {
         }
     }
 
-    /// Packs trimming loops, one row per patch (patches beyond `trims` are untrimmed).
-    /// Loops with more than [`MAX_TRIM_EDGES`] edges in total are thinned evenly.
+    /// Packs trimming loops, one row per patch (patches beyond `trims` are
+    /// untrimmed). A patch whose loops have more than [`MAX_TRIM_EDGES`]
+    /// edges in total has them simplified to fit (Douglas–Peucker, the
+    /// least tolerance found by doubling from a millionth of the loops'
+    /// box: the points that shape the loop are kept, runs of nearly
+    /// collinear ones dropped), and is listed in
+    /// [`PackedNurbs::trims_simplified`]; were the loops more than the
+    /// texture holds even as bare corners, the rest are thinned evenly.
     pub fn set_trims(&mut self, trims: &[TrimLoops]) {
         let rows = self.patches as usize;
+        let mut simplified = Vec::new();
         let edges: Vec<Vec<[f32; 4]>> = (0..rows)
             .map(|k| {
-                let loops = trims.get(k).map(Vec::as_slice).unwrap_or(&[]);
-                let total: usize = loops.iter().map(|l| l.len().saturating_sub(1)).sum();
+                let given = trims.get(k).map(Vec::as_slice).unwrap_or(&[]);
+                let count = |ls: &[Vec<[f64; 2]>]| ls.iter().map(|l| l.len().saturating_sub(1)).sum::<usize>();
+                let total = count(given);
+                let mut fitted: Vec<Vec<[f64; 2]>>;
+                let loops = if total > MAX_TRIM_EDGES {
+                    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+                    for q in given.iter().flatten().filter(|q| q[0].is_finite() && q[1].is_finite()) {
+                        for a in 0..2 {
+                            lo[a] = lo[a].min(q[a]);
+                            hi[a] = hi[a].max(q[a]);
+                        }
+                    }
+                    let side = |a: usize| if hi[a] > lo[a] { hi[a] - lo[a] } else { 1.0 };
+                    let scale = [side(0), side(1)];
+                    let mut eps = 1e-6;
+                    loop {
+                        fitted = given.iter().map(|l| simplify(l, scale, eps)).collect();
+                        if count(&fitted) <= MAX_TRIM_EDGES || eps > 1.0 {
+                            break;
+                        }
+                        eps *= 2.0;
+                    }
+                    simplified.push(TrimSimplified {
+                        patch: k,
+                        edges: total,
+                        kept: count(&fitted).min(MAX_TRIM_EDGES),
+                        tolerance: eps,
+                    });
+                    &fitted[..]
+                } else {
+                    given
+                };
+                let total = count(loops);
                 let step = total.div_ceil(MAX_TRIM_EDGES).max(1);
                 let mut e = Vec::new();
                 for l in loops {
@@ -437,6 +535,7 @@ impl PackedNurbs {
         }
         self.trim_width = width as u32;
         self.trims = t;
+        self.trims_simplified = simplified;
         self.write_colors();
     }
 }
@@ -1064,12 +1163,14 @@ impl PreparedNurbs {
             // trims stay: elevation keeps the parameterisation
             let (width, trims) = (self.packed.trim_width, std::mem::take(&mut self.packed.trims));
             let colors = std::mem::take(&mut self.packed.colors);
+            let simplified = std::mem::take(&mut self.packed.trims_simplified);
             let deviation = (self.packed.deviation_width, std::mem::take(&mut self.packed.deviation));
             let edges = (self.packed.edges_width, std::mem::take(&mut self.packed.edges));
             self.packed = PackedNurbs::new(&self.surfaces);
             self.packed.trim_width = width;
             self.packed.trims = trims;
             self.packed.colors = colors;
+            self.packed.trims_simplified = simplified;
             (self.packed.deviation_width, self.packed.deviation) = deviation;
             (self.packed.edges_width, self.packed.edges) = edges;
             self.id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);

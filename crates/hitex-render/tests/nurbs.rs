@@ -980,3 +980,65 @@ fn fitted_mesh_draws_the_exact_silhouette() {
     assert!(worst(&auto) <= 1, "fitted {:?}: rows differ by up to {} pixels", fitted[0], worst(&auto));
     assert!(worst(&coarse) >= 4, "8×8: rows differ by only {} pixels", worst(&coarse));
 }
+
+/// Trimming loops beyond the texture's row are simplified, not thinned
+/// evenly: a 20,000-edge circle with a one-point spike keeps its spike and
+/// stays within the stated tolerance of the loop as given; a loop that
+/// fits is packed as it is.
+#[test]
+fn trims_past_the_texture_row_are_simplified_keeping_their_shape() {
+    use hitex_render::nurbs::MAX_TRIM_EDGES;
+    let s = wavy(1, 1, 2, 2);
+    let range = [s.domain()];
+    let mut p = PreparedNurbs::new(vec![s], &range, 4);
+    let n = 20_000;
+    let spike = n / 2 + 1;
+    let circle: Vec<[f64; 2]> = (0..=n)
+        .map(|i| {
+            let a = std::f64::consts::TAU * i as f64 / n as f64;
+            let r = if i == spike { 0.32 } else { 0.3 };
+            [0.5 + r * a.cos(), 0.5 + r * a.sin()]
+        })
+        .collect();
+    let outer = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]];
+    p.set_trims(&[vec![outer.clone(), circle.clone()]]);
+    let t = &p.packed;
+    let kept = t.trims[0][0] as usize;
+    assert!(kept <= MAX_TRIM_EDGES && kept > 100, "{kept} edges kept");
+    let info = &t.trims_simplified;
+    assert_eq!(info.len(), 1);
+    assert_eq!((info[0].patch, info[0].edges, info[0].kept), (0, n + 4, kept));
+    // the spike's tip is a vertex of the packed loop (even thinning by 3 drops it)
+    let edges = &t.trims[1..1 + kept];
+    let tip = circle[spike];
+    assert!(
+        edges.iter().any(|e| ((e[0] as f64 - tip[0]).hypot(e[1] as f64 - tip[1])) < 1e-6),
+        "the spike at {tip:?} was lost"
+    );
+    // every given point lies within the tolerance (of the loops' box, here
+    // 1 × 1) of the packed edges, to f32 rounding
+    let dist = |q: [f64; 2]| -> f64 {
+        edges
+            .iter()
+            .map(|e| {
+                let (a, b) = ([e[0] as f64, e[1] as f64], [e[2] as f64, e[3] as f64]);
+                let d = [b[0] - a[0], b[1] - a[1]];
+                let len2 = d[0] * d[0] + d[1] * d[1];
+                let t = if len2 > 0.0 {
+                    (((q[0] - a[0]) * d[0] + (q[1] - a[1]) * d[1]) / len2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                (q[0] - a[0] - t * d[0]).hypot(q[1] - a[1] - t * d[1])
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let worst = circle.iter().map(|&q| dist(q)).fold(0.0, f64::max);
+    assert!(worst <= info[0].tolerance + 1e-6, "{worst} beyond the stated {}", info[0].tolerance);
+    assert!(info[0].tolerance < 1e-4, "tolerance {}", info[0].tolerance);
+    // a loop that fits is packed point for point, with nothing reported
+    let small: Vec<[f64; 2]> = circle.iter().step_by(10).copied().collect();
+    p.set_trims(&[vec![outer, small.clone()]]);
+    assert!(p.packed.trims_simplified.is_empty());
+    assert_eq!(p.packed.trims[0][0] as usize, 4 + small.len() - 1);
+}
