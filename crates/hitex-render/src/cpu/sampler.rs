@@ -26,6 +26,9 @@ pub struct LaneSampler<'a> {
     levels: Vec<Level<'a>>,
     opts: SamplerOptions,
     lut: &'static [f32; 256],
+    /// True when the program runs at AVX-512: the bilinear reads then go
+    /// through [`wide::bilinear`]'s vector gathers.
+    wide: bool,
 }
 
 /// The screen-to-texture Jacobian of a block, per lane (uv per pixel).
@@ -48,7 +51,8 @@ impl<'a> LaneSampler<'a> {
     pub fn new(pyr: &'a MipPyramid, opts: SamplerOptions) -> Self {
         let levels =
             pyr.levels().iter().map(|l| Level { texels: l.texels(), width: l.width(), height: l.height() }).collect();
-        Self { levels, opts, lut: hitex_core::texture::image::decode_table(pyr.color_space()) }
+        let wide = simd::level_for_gathers() == simd::SimdLevel::Avx512 && simd::SimdLevel::Avx512.available();
+        Self { levels, opts, lut: hitex_core::texture::image::decode_table(pyr.color_space()), wide }
     }
 
     /// λ per lane (levels below level 0, unclamped; −∞ where the footprint is
@@ -209,6 +213,23 @@ impl<'a> LaneSampler<'a> {
             let (ta, tb): (&[u32], &[u32]) = (bytemuck::cast_slice(a.texels), bytemuck::cast_slice(b.texels));
             let (Some(la), Some(lb)) = (ta.len().checked_sub(1), tb.len().checked_sub(1)) else { return out };
             let pa = self.taps(&[a.width as f32; LANES], &[a.height as f32; LANES], u, v);
+            #[cfg(target_arch = "x86_64")]
+            if self.wide && la <= i32::MAX as usize && lb <= i32::MAX as usize {
+                // SAFETY: `wide` is set only where the processor runs
+                // AVX-512F; the offsets are clamped to `la`, `lb`, which are
+                // below each slice's length and within the gathers' i32 range
+                let c0 = unsafe { wide::bilinear(ta, la as u32, &pa, self.lut) };
+                if !blend {
+                    return c0;
+                }
+                let pb = self.taps(&[b.width as f32; LANES], &[b.height as f32; LANES], u, v);
+                // SAFETY: as above
+                let c1 = unsafe { wide::bilinear(tb, lb as u32, &pb, self.lut) };
+                for c in 0..3 {
+                    out[c] = lanes!(|i| c0[c][i] + (c1[c][i] - c0[c][i]) * gamma[i]);
+                }
+                return out;
+            }
             if blend {
                 let pb = self.taps(&[b.width as f32; LANES], &[b.height as f32; LANES], u, v);
                 for i in 0..LANES {
@@ -314,6 +335,55 @@ impl<'a> LaneSampler<'a> {
     }
 }
 
+/// The bilinear reads of 16 lanes as AVX-512 gathers: each tap's texels in
+/// one gather, each channel's decoding in one gather from the 256-entry
+/// table, the blends on whole vectors in [`LaneSampler::read`]'s order and
+/// operations (no fused multiply-add), so the result is the lane loop's bit
+/// for bit.
+#[cfg(target_arch = "x86_64")]
+mod wide {
+    use super::{LANES, Rgb, Taps};
+    use std::arch::x86_64::*;
+
+    /// [`super::LaneSampler::read`] for all 16 lanes at once.
+    ///
+    /// # Safety
+    /// The processor runs AVX-512F; `last < texels.len()` and
+    /// `last <= i32::MAX`.
+    #[target_feature(enable = "avx512f")]
+    pub(super) unsafe fn bilinear(texels: &[u32], last: u32, taps: &Taps, lut: &[f32; 256]) -> Rgb {
+        const _: () = assert!(LANES == 16);
+        let cap = _mm512_set1_epi32(last as i32);
+        let base = texels.as_ptr() as *const u8;
+        let mut p = [_mm512_setzero_si512(); 4];
+        for k in 0..4 {
+            // SAFETY: 16 u32 in `at[k]`; offsets clamped to `last`, in bounds
+            let at = unsafe { _mm512_loadu_si512(taps.at[k].as_ptr() as *const _) };
+            p[k] = unsafe { _mm512_i32gather_epi32::<4>(_mm512_min_epu32(at, cap), base as *const _) };
+        }
+        let alpha = unsafe { _mm512_loadu_ps(taps.alpha.as_ptr()) };
+        let beta = unsafe { _mm512_loadu_ps(taps.beta.as_ptr()) };
+        let byte = _mm512_set1_epi32(0xff);
+        let table = lut.as_ptr() as *const u8;
+        let mut out: Rgb = [[0.0; LANES]; 3];
+        for (c, o) in out.iter_mut().enumerate() {
+            let shift = _mm512_set1_epi32(8 * c as i32);
+            let mut t = [_mm512_setzero_ps(); 4];
+            for k in 0..4 {
+                let i = _mm512_and_si512(_mm512_srlv_epi32(p[k], shift), byte);
+                // SAFETY: indices masked to 0..=255, within the table
+                t[k] = unsafe { _mm512_i32gather_ps::<4>(i, table as *const _) };
+            }
+            let top = _mm512_add_ps(t[0], _mm512_mul_ps(_mm512_sub_ps(t[1], t[0]), alpha));
+            let bottom = _mm512_add_ps(t[2], _mm512_mul_ps(_mm512_sub_ps(t[3], t[2]), alpha));
+            let mix = _mm512_add_ps(top, _mm512_mul_ps(_mm512_sub_ps(bottom, top), beta));
+            // SAFETY: 16 f32 in `o`
+            unsafe { _mm512_storeu_ps(o.as_mut_ptr(), mix) };
+        }
+        out
+    }
+}
+
 /// A level's bilinear footprint per lane: the four texel offsets (top left,
 /// top right, bottom left, bottom right) and the blend weights.
 struct Taps {
@@ -378,6 +448,52 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The AVX-512 gathers return the lane loop's bits, on every filter,
+    /// wrap and colour space, with lanes on one level or blending two.
+    #[test]
+    fn gathers_read_the_lane_loops_bits() {
+        if !simd::SimdLevel::Avx512.available() {
+            eprintln!("SKIPPED: gathers_read_the_lane_loops_bits: this processor lacks AVX-512");
+            assert!(!std::env::var("HITEX_REQUIRE_AVX512").is_ok_and(|v| v == "1"), "HITEX_REQUIRE_AVX512=1");
+            return;
+        }
+        let mut blended = 0;
+        for cs in [ColorSpace::Srgb, ColorSpace::Linear] {
+            let pyr = pyramid(cs);
+            for filter in [Filter::Bilinear, Filter::Trilinear] {
+                for wrap in [Wrap::Repeat, Wrap::Clamp, Wrap::Mirror] {
+                    let opts = SamplerOptions { filter, wrap, level_rule: LevelRule::MaxPartial, lod_bias: 0.0 };
+                    let mut wide = LaneSampler::new(&pyr, opts);
+                    wide.wide = true;
+                    let mut lanes = LaneSampler::new(&pyr, opts);
+                    lanes.wide = false;
+                    for k in 0..300 {
+                        let f = |i: usize, a: f32| ((k * 16 + i) as f32 * a).sin() * 2.5;
+                        let u: Lanes = std::array::from_fn(|i| f(i, 0.731));
+                        let v: Lanes = std::array::from_fn(|i| f(i, 1.377));
+                        // one footprint for the block (its lanes share their levels)
+                        let s = 0.01 * (1.0 + (k % 40) as f32);
+                        let j = LaneJacobian {
+                            du_dx: [s; LANES],
+                            dv_dx: [0.0; LANES],
+                            du_dy: [0.0; LANES],
+                            dv_dy: [s; LANES],
+                        };
+                        let g = lanes.level_of_detail(&j)[0];
+                        blended += (g.fract() != 0.0 && g > 0.0) as usize;
+                        let (a, b) = (wide.sample(&u, &v, &j, 0xffff), lanes.sample(&u, &v, &j, 0xffff));
+                        for c in 0..3 {
+                            for i in 0..LANES {
+                                assert_eq!(a[c][i].to_bits(), b[c][i].to_bits(), "{cs:?} {filter:?} {wrap:?} lane {i}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(blended > 100, "the footprints blend two levels ({blended})");
     }
 
     #[test]

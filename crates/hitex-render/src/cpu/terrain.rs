@@ -58,6 +58,9 @@ struct Program<'a> {
     lut: &'static [f32; 256],
     /// `a / 255` for every 8-bit alpha (a load instead of a division).
     alpha: &'static [f32; 256],
+    /// True when the programs run at AVX-512: a block whose lanes read one
+    /// map then reads it through [`wide::footprints`]' vector gathers.
+    wide: bool,
 }
 
 /// Per-axis filter taps: texel indices and weights (2 or 4 used).
@@ -236,6 +239,27 @@ impl Program<'_> {
             fy[i] = y - y0;
             ix[i] = whole_i32(x0);
             iy[i] = whole_i32(y0);
+        }
+        #[cfg(target_arch = "x86_64")]
+        if self.wide && wanted != 0 {
+            // the wanted lanes' footprints all inside one map (the usual
+            // case): one page-table walk and the reads as vector gathers
+            let f = wanted.trailing_zeros() as usize;
+            let mut one = true;
+            for i in 0..LANES {
+                let inside = (ix[i] & 255 != 255) & (iy[i] & 255 != 255);
+                let same = (z[i] == z[f]) & (ix[i] >> 8 == ix[f] >> 8) & (iy[i] >> 8 == iy[f] >> 8);
+                one &= (wanted >> i & 1 == 0) | (inside & same);
+            }
+            if one {
+                return match self.serving(z[f], ix[f], iy[f]) {
+                    // SAFETY: `wide` is set only where the processor runs AVX-512F
+                    Some((t, k)) => unsafe {
+                        wide::footprints(t, k, &ix, &iy, &fx, &fy, wanted as u16, self.lut, self.alpha)
+                    },
+                    None => [[0.0f32; LANES]; 4],
+                };
+            }
         }
         let mut c = [[0.0f32; LANES]; 4];
         // neighbouring lanes almost always read one map: its page-table
@@ -782,6 +806,69 @@ fn lerp2(c: [[f32; 4]; 4], fx: f32, fy: f32) -> [f32; 4] {
     })
 }
 
+/// The bilinear reads of 16 lanes inside one map as AVX-512 gathers: the
+/// texels of each tap in one gather, each channel's decoding in one gather
+/// from its table, blended on whole vectors in [`lerp2`]'s order and
+/// operations (no fused multiply-add): the lane loop's bits.
+#[cfg(target_arch = "x86_64")]
+mod wide {
+    use super::{LANES, Lanes, Map};
+    use std::arch::x86_64::*;
+
+    /// [`super::Program::footprint_in`] and [`super::lerp2`] for the lanes
+    /// of `wanted` (the others 0), all served by map `t` with shift `k`.
+    ///
+    /// # Safety
+    /// The processor runs AVX-512F.
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx512f")]
+    pub(super) unsafe fn footprints(
+        t: &Map,
+        k: u32,
+        ix: &[i32; LANES],
+        iy: &[i32; LANES],
+        fx: &Lanes,
+        fy: &Lanes,
+        wanted: u16,
+        lut: &[f32; 256],
+        alpha: &[f32; 256],
+    ) -> [Lanes; 4] {
+        const _: () = assert!(LANES == 16);
+        // SAFETY: 16 lanes in each array
+        let (x, y) =
+            unsafe { (_mm512_loadu_si512(ix.as_ptr() as *const _), _mm512_loadu_si512(iy.as_ptr() as *const _)) };
+        let (fx, fy) = unsafe { (_mm512_loadu_ps(fx.as_ptr()), _mm512_loadu_ps(fy.as_ptr())) };
+        let (one, byte, shift) = (_mm512_set1_epi32(1), _mm512_set1_epi32(255), _mm512_set1_epi32(k as i32));
+        let col = |v: __m512i| _mm512_and_si512(_mm512_srav_epi32(v, shift), byte);
+        let (x0, x1) = (col(x), col(_mm512_add_epi32(x, one)));
+        let (y0, y1) = (_mm512_slli_epi32::<8>(col(y)), _mm512_slli_epi32::<8>(col(_mm512_add_epi32(y, one))));
+        let at = [_mm512_or_si512(y0, x0), _mm512_or_si512(y0, x1), _mm512_or_si512(y1, x0), _mm512_or_si512(y1, x1)];
+        let base = t.as_ptr() as *const u8;
+        let mut p = [_mm512_setzero_si512(); 4];
+        for (p, at) in p.iter_mut().zip(at) {
+            // SAFETY: offsets below 65,536, the map's texel count
+            *p = unsafe { _mm512_i32gather_epi32::<4>(at, base as *const _) };
+        }
+        let mut out = [[0.0f32; LANES]; 4];
+        for (c, o) in out.iter_mut().enumerate() {
+            let table = if c == 3 { alpha } else { lut };
+            let sh = _mm512_set1_epi32(8 * c as i32);
+            let mut v = [_mm512_setzero_ps(); 4];
+            for (v, p) in v.iter_mut().zip(p) {
+                let i = _mm512_and_si512(_mm512_srlv_epi32(p, sh), byte);
+                // SAFETY: indices masked to 0..=255, within the table
+                *v = unsafe { _mm512_i32gather_ps::<4>(i, table.as_ptr() as *const _) };
+            }
+            let top = _mm512_add_ps(v[0], _mm512_mul_ps(_mm512_sub_ps(v[1], v[0]), fx));
+            let bot = _mm512_add_ps(v[2], _mm512_mul_ps(_mm512_sub_ps(v[3], v[2]), fx));
+            let mix = _mm512_maskz_mov_ps(wanted, _mm512_add_ps(top, _mm512_mul_ps(_mm512_sub_ps(bot, top), fy)));
+            // SAFETY: 16 f32 in `o`
+            unsafe { _mm512_storeu_ps(o.as_mut_ptr(), mix) };
+        }
+        out
+    }
+}
+
 fn encode(c: [f32; 3]) -> [u8; 4] {
     [linear_to_srgb_u8(c[0]), linear_to_srgb_u8(c[1]), linear_to_srgb_u8(c[2]), 255]
 }
@@ -1023,6 +1110,7 @@ fn bind<'a>(
         generic,
         lut: decode_table(ColorSpace::Srgb),
         alpha: decode_table(ColorSpace::Linear),
+        wide: super::simd::level() == super::simd::SimdLevel::Avx512 && super::simd::SimdLevel::Avx512.available(),
     })
 }
 
