@@ -5,12 +5,13 @@
 //! bank traffic (recorded by the CPU backend's bank model).
 
 use crate::bench::{Backends, CaseFn, Report, print_table, run_case_fns};
-use crate::terrain_store_cmd::{PathKey, camera_at, frame_setup, open_cache};
+use crate::terrain_store_cmd::{flight_area, frame_setup, open_cache};
 use crate::{CliError, parse_size};
-use glam::DVec2;
+use hitex_core::terrain::path::PathKey;
 use hitex_core::texture::span::{BankModel, RgbaFrame, psnr, ssim};
 use hitex_io::gst::{BuildOptions, ProceduralSource, StoreMeta, TILE, TileSource, build_store};
 use hitex_render::cpu::terrain::render_fly;
+use hitex_render::terrain::flight::FlightArea;
 use hitex_render::terrain::{FlyGround, FlySampler};
 use serde::Serialize;
 use std::cell::RefCell;
@@ -94,7 +95,8 @@ pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
             a.frames
         );
     }
-    let extent = DVec2::new(a.source as f64, a.source as f64);
+    // the data's extent is the source's: a.source texels a side
+    let area = FlightArea { extent: [a.source as f64; 2], ..flight_area(&meta) };
     let frames = a.frames.max(1);
     let key = |i: u32| {
         let ang = i as f64 / frames as f64 * std::f64::consts::TAU;
@@ -120,7 +122,7 @@ pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
         let (s, _, _) = frame_setup(
             &mut cache.borrow_mut(),
             &meta,
-            &camera_at(&key(i), &meta, extent, 45.0),
+            &area.camera_at(&key(i), 45.0),
             (w, h),
             45.0,
             per_side,
@@ -131,10 +133,10 @@ pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
     }
     // one case per sampler, the same frames through the same page tables on both backends
     let case = |sampler: FlySampler| -> CaseFn {
-        let (cache, meta, key) = (&cache, &meta, &key);
+        let (cache, meta, key, area) = (&cache, &meta, &key, &area);
         Box::new(move |i, _k, w, h| {
             let mut start = Instant::now();
-            let cam = camera_at(&key(i), meta, extent, 45.0);
+            let cam = area.camera_at(&key(i), 45.0);
             let (_, u, pages) =
                 frame_setup(&mut cache.borrow_mut(), meta, &cam, (w, h), 45.0, per_side, false, &mut start);
             // rendering only: the bank traffic is measured below
@@ -153,7 +155,7 @@ pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
     let mut acc: Vec<(f64, f64, BankModel)> = Vec::new();
     for i in 0..frames {
         let mut start = Instant::now();
-        let cam = camera_at(&key(i), &meta, extent, 45.0);
+        let cam = area.camera_at(&key(i), 45.0);
         let (_, u, pages) =
             frame_setup(&mut cache.borrow_mut(), &meta, &cam, (w, h), 45.0, per_side, false, &mut start);
         let rgba = |f: hitex_render::Frame| RgbaFrame { width: f.width, height: f.height, rgba: f.rgba };

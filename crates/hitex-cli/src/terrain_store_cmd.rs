@@ -4,14 +4,15 @@
 use crate::{Backend, CliError, open_renderer, parse_size, save};
 use clap::Args;
 use glam::DVec2;
-use hitex_core::residency::{MapKey, ResidentMaps, View, active_maps};
+use hitex_core::residency::{MapKey, ResidentMaps};
+use hitex_core::terrain::path::{FlightPath, PathKey};
 use hitex_io::gst::{
     BuildOptions, GeoTiffSource, MemorySource, ProceduralSource, Store, StoreMeta, TILE, TileSource, build_store,
     open_store, stored_dem,
 };
-use hitex_render::terrain::{FlyCamera, FlyGround, FlyMesh, FlyPages, FlySampler, FlyUniform, GenericTexture};
+use hitex_render::terrain::flight::{FlightArea, Relief, prepare_frame};
+use hitex_render::terrain::{FlyCamera, FlyGround, FlyPages, FlySampler, FlyUniform};
 use hitex_render::{Job, Renderer};
-use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -672,188 +673,41 @@ impl From<SamplerArg> for FlySampler {
     }
 }
 
-/// The store's DEM placed on its maps, meshed per frame with a level of
-/// detail that follows the eye, and the aircraft flown ahead of the camera.
-pub struct Relief {
-    heights: Vec<f32>,
-    w: usize,
-    h: usize,
-    /// Map texels of post (0, 0) and between posts.
-    origin: [f64; 2],
-    spacing: [f64; 2],
-    /// Map texels per metre of height (with the exaggeration).
-    height_scale: f64,
-    /// The aircraft's texture.
-    pub generic: GenericTexture,
-    /// Draw the aircraft.
-    pub aircraft: bool,
-    /// Where the DEM came from.
-    pub path: PathBuf,
+/// The DEM a store holds beside its maps (`dem.*`, copied in by `terrain
+/// build --dem`), placed on them, and where it came from; None without one.
+pub fn open_relief(store: &Store, exaggeration: f64) -> Result<Option<(Relief, PathBuf)>, CliError> {
+    let meta = &store.meta;
+    let Some((path, bytes)) = store.dem()? else { return Ok(None) };
+    if !(exaggeration.is_finite() && exaggeration >= 0.0) {
+        return Err(CliError::Input(format!("--exaggeration {exaggeration} must be finite and ≥ 0")));
+    }
+    let mut dem = crate::terrain_cmd::parse_dem(&bytes, &path)?;
+    let filled = hitex_io::geotiff::fill_holes(&mut dem);
+    if filled == (dem.width as usize * dem.height as usize) {
+        return Err(CliError::Input(format!("{}: every elevation sample is nodata", path.display())));
+    }
+    if meta.pixel[0] <= 0.0 || meta.pixel[1] <= 0.0 {
+        return Err(CliError::Input(format!("{}: the store's texel size is not positive", store.path.display())));
+    }
+    let heights: Vec<f32> = (0..dem.width as usize * dem.height as usize).map(|i| dem.data[i * dem.bands]).collect();
+    let relief = Relief::placed(
+        heights,
+        (dem.width as usize, dem.height as usize),
+        dem.origin,
+        dem.pixel,
+        meta.origin,
+        meta.pixel,
+        exaggeration,
+        meta.ground_pixel(),
+    )
+    .map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?;
+    Ok(Some((relief, path)))
 }
 
-/// The DEM a store holds beside its maps (`dem.*`), if any.
-/// Direction towards the sun (south-east, 50° up).
-const SUN: [f32; 3] = [0.49, 0.49, 0.72];
-
-impl Relief {
-    /// The DEM stored beside the maps (`dem.*`, copied in by `terrain build --dem`), if any.
-    pub fn open(store: &Store, exaggeration: f64) -> Result<Option<Self>, CliError> {
-        let meta = &store.meta;
-        let Some((path, bytes)) = store.dem()? else { return Ok(None) };
-        if !(exaggeration.is_finite() && exaggeration >= 0.0) {
-            return Err(CliError::Input(format!("--exaggeration {exaggeration} must be finite and ≥ 0")));
-        }
-        let mut dem = crate::terrain_cmd::parse_dem(&bytes, &path)?;
-        let filled = hitex_io::geotiff::fill_holes(&mut dem);
-        if filled == (dem.width as usize * dem.height as usize) {
-            return Err(CliError::Input(format!("{}: every elevation sample is nodata", path.display())));
-        }
-        if meta.pixel[0] <= 0.0 || meta.pixel[1] <= 0.0 {
-            return Err(CliError::Input(format!("{}: the store's texel size is not positive", store.path.display())));
-        }
-        let heights: Vec<f32> =
-            (0..dem.width as usize * dem.height as usize).map(|i| dem.data[i * dem.bands]).collect();
-        // post (i, j) lies at the centre of DEM pixel (i, j); map texels count from the store's north-west corner
-        let origin = [
-            (dem.origin[0] + 0.5 * dem.pixel[0] - meta.origin[0]) / meta.pixel[0],
-            (meta.origin[1] - (dem.origin[1] - 0.5 * dem.pixel[1])) / meta.pixel[1],
-        ];
-        let spacing = [dem.pixel[0] / meta.pixel[0], dem.pixel[1] / meta.pixel[1]];
-        Ok(Some(Self {
-            heights,
-            w: dem.width as usize,
-            h: dem.height as usize,
-            origin,
-            spacing,
-            height_scale: exaggeration / meta.ground_pixel(),
-            generic: GenericTexture::livery(),
-            aircraft: true,
-            path,
-        }))
-    }
-
-    /// The highest post, metres (before exaggeration).
-    pub fn highest(&self) -> f64 {
-        self.heights.iter().filter(|h| h.is_finite()).fold(0.0f64, |m, &h| m.max(h as f64))
-    }
-
-    /// Ground height (map texels) under map point (x, y): the nearest post, 0 off the grid.
-    pub fn height_at(&self, x: f64, y: f64) -> f64 {
-        let (i, j) =
-            (((x - self.origin[0]) / self.spacing[0]).round(), ((y - self.origin[1]) / self.spacing[1]).round());
-        if !(i >= 0.0 && j >= 0.0 && i < self.w as f64 && j < self.h as f64) {
-            return 0.0;
-        }
-        let v = self.heights[j as usize * self.w + i as usize] as f64 * self.height_scale;
-        if v.is_finite() { v } else { 0.0 }
-    }
-
-    /// The frame's mesh: the DEM at the detail the eye needs, and the aircraft.
-    pub fn mesh(&self, cam: &FlyCamera, width: u32) -> Result<FlyMesh, CliError> {
-        let opts = hitex_core::terrain::LodOptions {
-            origin: self.origin,
-            spacing: self.spacing,
-            height_scale: self.height_scale,
-            eye: cam.eye,
-            pixels_per_tan: width as f64 / (2.0 * cam.tan_h),
-            max_edge_px: 6.0,
-            block: 32,
-        };
-        let lod = hitex_core::terrain::lod_mesh(&self.heights, self.w, self.h, &opts)
-            .map_err(|e| CliError::Input(format!("{}: {e}", self.path.display())))?;
-        let mut mesh = FlyMesh::from_lod(&lod);
-        if self.aircraft {
-            let agl = (cam.eye[2] - self.height_at(cam.eye[0], cam.eye[1])).max(1.0);
-            let d = 0.45 * agl;
-            let at: [f64; 3] =
-                std::array::from_fn(|i| cam.eye[i] + cam.fwd[i] * d + cam.right[i] * 0.12 * d - cam.up[i] * 0.12 * d);
-            // the camera's heading: right = (cos h, sin h)
-            let heading = cam.right[1].atan2(cam.right[0]).to_degrees();
-            mesh.append(&FlyMesh::aircraft(at, heading, 0.16 * d, SUN));
-        }
-        Ok(mesh)
-    }
-}
-
-/// One key of a flight path.
-#[derive(Debug, Clone, Copy, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PathKey {
-    /// Time (any unit; frames are spread evenly over the keys' range).
-    pub t: f64,
-    /// East position as a fraction of the extent.
-    pub x: f64,
-    /// South position as a fraction of the extent.
-    pub y: f64,
-    /// Altitude above the datum, metres: above the flat ground, or above the
-    /// DEM's zero when the store draws relief.
-    pub altitude: f64,
-    /// Pitch below the horizon, degrees (90 looks straight down).
-    pub pitch: f64,
-    /// Heading, degrees clockwise from north.
-    pub heading: f64,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct PathFile {
-    key: Vec<PathKey>,
-}
-
-fn load_path(path: &Path) -> Result<Vec<PathKey>, CliError> {
+/// A flight path file (`[[key]]` tables, see `hitex_core::terrain::path`).
+fn load_path(path: &Path) -> Result<FlightPath, CliError> {
     let text = std::fs::read_to_string(path).map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?;
-    let f: PathFile = toml::from_str(&text).map_err(|e| {
-        CliError::Input(format!("{}: {}", path.display(), hitex_core::scene::desc::toml_message(&text, &e)))
-    })?;
-    let mut keys = f.key;
-    if keys.is_empty() {
-        return Err(CliError::Input(format!("{}: no [[key]] tables", path.display())));
-    }
-    for (i, k) in keys.iter().enumerate() {
-        let vals = [k.t, k.x, k.y, k.altitude, k.pitch, k.heading];
-        if vals.iter().any(|v| !v.is_finite()) {
-            return Err(CliError::Input(format!("{}: key[{i}] has a value that is not finite", path.display())));
-        }
-        if k.altitude <= 0.0 {
-            return Err(CliError::Input(format!(
-                "{}: key[{i}].altitude = {}: the camera is below the ground",
-                path.display(),
-                k.altitude
-            )));
-        }
-        if !(0.0..=1.0).contains(&k.x) || !(0.0..=1.0).contains(&k.y) {
-            return Err(CliError::Input(format!(
-                "{}: key[{i}] at x = {}, y = {} is outside the store: x and y are fractions of its extent, in 0 to 1",
-                path.display(),
-                k.x,
-                k.y
-            )));
-        }
-        if !(k.pitch > 0.0 && k.pitch <= 90.0) {
-            return Err(CliError::Input(format!(
-                "{}: key[{i}].pitch = {}° must be in (0, 90] below the horizon (90 looks straight down)",
-                path.display(),
-                k.pitch
-            )));
-        }
-    }
-    keys.sort_by(|a, b| a.t.total_cmp(&b.t));
-    Ok(keys)
-}
-
-fn at_time(keys: &[PathKey], t: f64) -> PathKey {
-    let i = keys.partition_point(|k| k.t <= t).clamp(1, keys.len().max(1)) - 1;
-    let (a, b) = (keys[i], keys[(i + 1).min(keys.len() - 1)]);
-    let s = if b.t > a.t { ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0) } else { 0.0 };
-    let l = |p: f64, q: f64| p + (q - p) * s;
-    PathKey {
-        t,
-        x: l(a.x, b.x),
-        y: l(a.y, b.y),
-        altitude: l(a.altitude, b.altitude),
-        pitch: l(a.pitch, b.pitch),
-        heading: l(a.heading, b.heading),
-    }
+    FlightPath::parse(&text).map_err(|e| CliError::Input(format!("{}: {e}", path.display())))
 }
 
 /// The resident-map cache of a store, loading its maps (files or MBTiles rows).
@@ -863,43 +717,39 @@ pub fn open_cache(store: Arc<Store>, budget: usize) -> Result<ResidentMaps, CliE
     ResidentMaps::new(budget, loader).map_err(|e| CliError::Input(e.to_string()))
 }
 
-/// The camera of a path key over a store's data of `extent` finest texels
-/// (x and y are fractions of the data; the key's pitch below the horizon
-/// becomes the paper's angle from the nadir).
-pub fn camera_at(k: &PathKey, meta: &StoreMeta, extent: DVec2, fov: f64) -> FlyCamera {
-    let (x, y) = (meta.offset[0] as f64 + k.x * extent.x, meta.offset[1] as f64 + k.y * extent.y);
-    FlyCamera::new(x, y, k.altitude / meta.ground_pixel(), 90.0 - k.pitch, k.heading, fov)
+/// Where a store's data lies, for the cameras of path keys and the active area.
+pub fn flight_area(meta: &StoreMeta) -> FlightArea {
+    FlightArea {
+        levels: meta.levels,
+        map_texels: TILE,
+        offset: meta.offset,
+        extent: [meta.width as f64, meta.height as f64],
+        ground_pixel: meta.ground_pixel(),
+    }
 }
 
-/// One frame's cache traffic, uniforms and page table; with `wait`, the
-/// time spent waiting for loads is moved out of the frame (`start` advances).
+/// One frame's cache traffic, uniforms and page table
+/// ([`prepare_frame`]), the cache's messages printed as warnings; with
+/// `wait`, the time spent waiting for loads is moved out of the frame
+/// (`start` advances).
 #[allow(clippy::too_many_arguments)]
 pub fn frame_setup(
     cache: &mut ResidentMaps,
     meta: &StoreMeta,
     cam: &FlyCamera,
-    (w, h): (u32, u32),
+    size: (u32, u32),
     fov: f64,
     per_side: u32,
     wait: bool,
     start: &mut Instant,
 ) -> (hitex_core::residency::FrameStats, FlyUniform, FlyPages) {
-    let eye = [cam.eye[0], cam.eye[1]];
-    let view = View { fov_deg: fov, pixels: w, per_side };
-    let needed = active_maps(meta.levels, TILE, |z| meta.data_range(z), eye, cam.eye[2], view);
-    let mut stats = cache.begin_frame(&needed);
-    if wait {
-        // loading is the background thread's work: waiting for it is not frame time
-        let waited = Instant::now();
-        cache.wait_pending(Duration::from_secs(30));
-        stats = cache.begin_frame(&needed);
-        *start += waited.elapsed();
-    }
-    for line in cache.take_log() {
+    let wait = wait.then_some(Duration::from_secs(30));
+    let f = prepare_frame(cache, &flight_area(meta), |z| meta.data_range(z), cam, size, fov, per_side, wait);
+    *start += f.waited;
+    for line in f.warnings {
         eprintln!("hitex: warning: {line}");
     }
-    let pages = FlyPages::new(cache, meta.levels, per_side, |z| meta.data_range(z), eye);
-    (stats, FlyUniform::new(cam, w, h, meta.levels, per_side), pages)
+    (f.stats, f.uniform, f.pages)
 }
 
 /// Removes the frames (`frame-NNNN.png`) of an earlier flight into `dir`
@@ -952,8 +802,8 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
     let metres = meta.ground_pixel();
     let relief = match a.ground {
         GroundArg::Flat => None,
-        GroundArg::Auto => Relief::open(&store, a.exaggeration)?,
-        GroundArg::Relief => Some(Relief::open(&store, a.exaggeration)?.ok_or_else(|| {
+        GroundArg::Auto => open_relief(&store, a.exaggeration)?,
+        GroundArg::Relief => Some(open_relief(&store, a.exaggeration)?.ok_or_else(|| {
             CliError::Input(format!(
                 "{} holds no DEM (dem.*): build it with --dem, or fly --ground flat",
                 a.store.display()
@@ -965,15 +815,15 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
             "hitex: warning: --no-aircraft: the aircraft flies over relief only; this flight is over flat ground"
         );
     }
-    let relief = relief.map(|mut r| {
+    let relief = relief.map(|(mut r, path)| {
         r.aircraft = !a.no_aircraft;
-        r
+        (r, path)
     });
     let keys = match &a.path {
         Some(p) => load_path(p)?,
         None => {
             // by default a tenth of the extent above the highest ground
-            let top = relief.as_ref().map_or(0.0, |r| r.highest() * a.exaggeration);
+            let top = relief.as_ref().map_or(0.0, |(r, _)| r.highest() * a.exaggeration);
             let alt = a.altitude.unwrap_or(top.max(0.0) + extent.x.max(extent.y) * metres / 10.0);
             if !(alt.is_finite() && alt > 0.0) {
                 return Err(CliError::Input(format!("--altitude {alt}: the camera is below the ground")));
@@ -985,7 +835,7 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
                 )));
             }
             // an orbit round the centre, looking inwards
-            (0..=16)
+            let keys = (0..=16)
                 .map(|i| {
                     let ang = i as f64 / 16.0 * std::f64::consts::TAU;
                     PathKey {
@@ -997,7 +847,8 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
                         heading: ang.to_degrees(),
                     }
                 })
-                .collect()
+                .collect();
+            FlightPath::new(keys).map_err(|e| CliError::Input(e.to_string()))?
         }
     };
     let per_side = hitex_core::terrain::active_area(a.fov, w, TILE, meta.levels.max(1))
@@ -1007,7 +858,7 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
     let sampler = FlySampler::from(a.sampler);
     let mut cache = open_cache(store.clone(), a.budget)?;
     let mut renderer = open_renderer(a.backend.into())?;
-    let (t0, t1) = (keys[0].t, keys[keys.len() - 1].t);
+    let (t0, t1) = keys.span();
     let mut times = Vec::new();
     let mut peak = (0usize, 0usize);
     say!(
@@ -1017,7 +868,7 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
         meta.width,
         meta.height,
         match &relief {
-            Some(r) => format!("relief from {} ×{}", r.path.display(), a.exaggeration),
+            Some((_, path)) => format!("relief from {} ×{}", path.display(), a.exaggeration),
             None => "flat ground".into(),
         },
         sampler.name(),
@@ -1045,10 +896,10 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
             (Some(_), n) => t0 + (t1 - t0) * f as f64 / (n - 1) as f64,
             (None, n) => t0 + (t1 - t0) * f as f64 / n as f64,
         };
-        let k = at_time(&keys, t);
+        let k = keys.at(t);
         let mut start = Instant::now();
-        let cam = camera_at(&k, &meta, extent, a.fov);
-        if let Some(r) = &relief {
+        let cam = flight_area(&meta).camera_at(&k, a.fov);
+        if let Some((r, _)) = &relief {
             let ground = r.height_at(cam.eye[0], cam.eye[1]);
             if cam.eye[2] <= ground {
                 return Err(CliError::Input(format!(
@@ -1060,9 +911,12 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
         }
         let (stats, u, pages) = frame_setup(&mut cache, &meta, &cam, (w, h), a.fov, per_side, a.wait, &mut start);
         let u = u.with_sampler(sampler);
-        let mesh = relief.as_ref().map(|r| r.mesh(&cam, w)).transpose()?;
+        let mesh = relief
+            .as_ref()
+            .map(|(r, path)| r.mesh(&cam, w).map_err(|e| CliError::Input(format!("{}: {e}", path.display()))))
+            .transpose()?;
         let ground = match (&relief, &mesh) {
-            (Some(r), Some(m)) => FlyGround::Mesh { mesh: m, generic: &r.generic },
+            (Some((r, _)), Some(m)) => FlyGround::Mesh { mesh: m, generic: &r.generic },
             _ => FlyGround::Flat,
         };
         let hitex_render::Rendered { frame, banks } = renderer.render(

@@ -353,8 +353,7 @@ impl Content {
                 Ok(render_frame(r, &Job::Btf { surface: &b.prepared, camera: b.orbit.camera(), light }, (w, h))?)
             }
             Content::Store { meta, cache, flight, fov, per_side, stats } => {
-                let extent = DVec2::new(meta.width as f64, meta.height as f64);
-                let key = crate::terrain_store_cmd::PathKey {
+                let key = hitex_core::terrain::path::PathKey {
                     t: 0.0,
                     x: flight.x,
                     y: flight.y,
@@ -363,7 +362,7 @@ impl Content {
                     pitch: 90.0 - flight.pitch,
                     heading: flight.heading,
                 };
-                let cam = crate::terrain_store_cmd::camera_at(&key, meta, extent, *fov);
+                let cam = crate::terrain_store_cmd::flight_area(meta).camera_at(&key, *fov);
                 *per_side = hitex_core::terrain::active_area(*fov, w, hitex_io::gst::TILE, meta.levels.max(1))
                     .ok()
                     .and_then(|l| l.first().map(|l| l.per_side))

@@ -51,6 +51,10 @@ pub enum CoreError {
     /// load (the loader's message), or its loader thread cannot be made.
     #[error("{0}")]
     Residency(String),
+    /// A flight path whose keys cannot be flown (the key's index and what
+    /// is wrong are in the message).
+    #[error("{0}")]
+    FlightPath(String),
 }
 
 /// Checks that `v` is finite, naming `key` in the error.

@@ -1,5 +1,7 @@
-//! Terrain: the active area of seed 001 (eq. (5)–(7)) and meshes from
-//! elevation grids.
+//! Terrain: the active area of seed 001 (eq. (5)–(7)), meshes from
+//! elevation grids, and flight paths ([`path`]).
+
+pub mod path;
 
 use crate::CoreError;
 use crate::scene::Mesh;

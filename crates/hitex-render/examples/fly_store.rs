@@ -7,9 +7,10 @@
 //! cargo run --release -p hitex-render --example fly_store -- out-dir
 //! ```
 
-use hitex_core::residency::{Loader, MapKey, ResidentMaps, View, active_maps};
+use hitex_core::residency::{Loader, MapKey, ResidentMaps};
 use hitex_io::gst::{BuildOptions, ProceduralSource, StoreMeta, TILE, build_store, open_store, read_tile};
-use hitex_render::terrain::{FlyCamera, FlyGround, FlyPages, FlyUniform};
+use hitex_render::terrain::flight::{FlightArea, prepare_frame};
+use hitex_render::terrain::{FlyCamera, FlyGround};
 use hitex_render::{AnyRenderer, BackendChoice, Job, Renderer};
 use std::borrow::Cow;
 use std::path::{Path, PathBuf};
@@ -33,6 +34,14 @@ pub fn run(out: &Path, side: u32, frames: u32, (w, h): (u32, u32)) -> Result<Str
     // maps per side of each level's window (eq. (7)) for this field of view and width
     let fov = 45.0;
     let per_side = hitex_core::terrain::active_area(fov, w, TILE, meta.levels)?.first().map_or(6, |l| l.per_side);
+    let area = FlightArea {
+        levels: meta.levels,
+        map_texels: TILE,
+        offset: meta.offset,
+        extent: [meta.width as f64, meta.height as f64],
+        ground_pixel: meta.ground_pixel(),
+    };
+    let wait = Duration::from_secs(30);
     let mut renderer = AnyRenderer::open(BackendChoice::Auto)?;
     for i in 0..frames {
         // 3. a camera circling the middle, looking at it 30° below the horizon
@@ -41,15 +50,11 @@ pub fn run(out: &Path, side: u32, frames: u32, (w, h): (u32, u32)) -> Result<Str
         let (cx, cy) = (side as f64 / 2.0 + r * a.cos(), side as f64 / 2.0 + r * a.sin());
         let heading = (-a.cos()).atan2(a.sin()).to_degrees();
         let cam = FlyCamera::new(cx, cy, side as f64 / 8.0, 60.0, heading, fov);
-        // 4. the maps this view needs: requested, waited for, then the page table
-        let view = View { fov_deg: fov, pixels: w, per_side };
-        let needed = active_maps(meta.levels, TILE, |z| meta.data_range(z), [cam.eye[0], cam.eye[1]], cam.eye[2], view);
-        cache.begin_frame(&needed);
-        cache.wait_pending(Duration::from_secs(30));
-        cache.begin_frame(&needed);
-        let pages = FlyPages::new(&cache, meta.levels, per_side, |z| meta.data_range(z), [cam.eye[0], cam.eye[1]]);
+        // 4. the maps this view needs (the active area) requested, waited
+        //    for, then the page table of what is resident and the uniforms
+        let f = prepare_frame(&mut cache, &area, |z| meta.data_range(z), &cam, (w, h), fov, per_side, Some(wait));
         // 5. render on any backend and save
-        let uniform = FlyUniform::new(&cam, w, h, meta.levels, per_side);
+        let (uniform, pages) = (f.uniform, f.pages);
         let job = Job::Flight { uniform, pages: Cow::Owned(pages), ground: FlyGround::Flat, stats: false };
         let frame = renderer.render(&job, w, h)?.frame;
         hitex_io::save_png(&out.join(format!("frame-{i}.png")), frame.width, frame.height, &frame.rgba)?;

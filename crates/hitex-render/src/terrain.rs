@@ -5,7 +5,11 @@
 //! every level, the window of the active area (eq. (7)) and, per map slot of
 //! it, which resident map serves it (itself, or the nearest coarser ancestor
 //! while it loads). `cpu/terrain.rs` and `shaders/terrain.wgsl` read the
-//! same table and filter it with the same [`FlySampler`].
+//! same table and filter it with the same [`FlySampler`]. [`flight`] does a
+//! flight's per-frame work above the renderer: path keys to cameras, the
+//! cache's requests and page table, the DEM meshed for the eye.
+
+pub mod flight;
 
 use glam::{Mat4, Vec3, Vec4};
 use hitex_core::residency::{MapKey, ResidentMaps};
