@@ -2,9 +2,19 @@
 //!
 //! * [`texture`]: images, sRGB-correct MIP pyramids and the sampler of the
 //!   flight-simulator paper (per-pixel level from the screen-to-map Jacobian,
-//!   bilinear at two levels, linear blend between them).
+//!   bilinear at two levels, linear blend between them), spans on banks, BC1.
+//! * [`btf`]: bidirectional texture functions (seed 000): index map and
+//!   codebook, the per-pixel angles, hexa-linear reads, layouts (a)–(f).
+//! * [`terrain`]: the active area (seed 001, eq. (5)–(7)), meshes from
+//!   elevation grids, flight paths ([`terrain::path`]).
+//! * [`residency`]: the resident-map cache loading a pyramid's maps in the
+//!   background.
+//! * [`nurbs`]: NURBS surfaces (seed 004): evaluation, derivatives,
+//!   curvature, trims, knot insertion and degree elevation.
 //! * [`scene`]: cameras, lights, triangle meshes, materials and the TOML scene
 //!   description with its embedded default.
+//! * [`tolerance`]: the named tolerances tests and comparisons state;
+//!   [`error`]: the crate's error type.
 //!
 //! Everything here is testable with `cargo test` alone and usable as a library.
 // a library prints nothing: it returns errors and warnings, or hands notices to a callback

@@ -1105,7 +1105,7 @@ fn global_units(params: &[String]) -> Option<String> {
     })
 }
 
-/// The IGES unit flag and name of a length unit named as [`global_units`]
+/// The IGES unit flag and name of a length unit named as `global_units`
 /// names them; `None` for a unit IGES has no flag for.
 pub fn iges_unit(units: &str) -> Option<(u32, &'static str)> {
     Some(match units {

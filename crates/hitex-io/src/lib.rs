@@ -1,11 +1,20 @@
 //! hitex-io: the file formats of hitex.
 //!
-//! * images: PNG and JPEG in, PNG out (atomic writes), through the `image` crate;
-//! * meshes: Wavefront OBJ through `tobj`;
-//! * scenes: TOML files whose relative paths resolve against the file's folder;
+//! * images ([`image_io`]): PNG and JPEG in, PNG out (atomic writes), through
+//!   the `image` crate; meshes: Wavefront OBJ through `tobj` ([`obj`]), STL
+//!   ([`stl`]), PLY ([`ply`]); scenes: TOML files whose relative paths
+//!   resolve against the file's folder ([`scene_file`]);
 //! * NURBS models ([`models`]): STEP parts and assemblies ([`step`]), IGES
 //!   ([`iges`]), OBJ free-form ([`obj_freeform`]), hitex JSON ([`nurbs_json`]);
-//!   point sets to measure against them ([`points`]).
+//!   point sets to measure against them ([`points`]);
+//! * BTFs: the native `.hbtf` ([`btf_file`]) and measured image sets, PNG and
+//!   OpenEXR ([`btf_images`]);
+//! * terrain: elevation models ([`dem`], several tiles as one: [`mosaic`]),
+//!   GeoTIFF rasters and their georeferencing ([`geotiff`]), coordinate
+//!   systems ([`crs`]) and reprojection ([`reproject`]), tile stores: TMS
+//!   folders ([`gst`]) and MBTiles ([`mbtiles`]);
+//! * [`limits`]: the memory cap every reader checks a file's claimed sizes
+//!   against; [`fuzz`]: one entry point per reader for the fuzz targets.
 //!
 //! Every error names the file, and the record or key where known.
 // a library prints nothing: it returns errors and warnings, or hands notices to a callback

@@ -4,6 +4,12 @@
 //!   sub-pixel precision, perspective-correct attributes, depth buffer, pixels
 //!   shaded in 2×2 quads) running the fragment programs of `cpu/*.rs`;
 //! * [`gpu`]: wgpu 30 running `shaders/*.wgsl`, the same programs in WGSL.
+//! * What both backends render, prepared once: textured scenes
+//!   ([`prepare`]), NURBS models and their analysis modes ([`nurbs`]), BTF
+//!   surfaces ([`btf`]), flights over tile stores ([`terrain`], with the
+//!   per-frame work above the renderer in [`terrain::flight`]).
+//! * [`compare`]: image metrics between frames; [`legend`]: colour legends
+//!   drawn into analysis frames.
 //!
 //! Both consume the same [`prepare::PreparedScene`]: world-space vertices,
 //! `#[repr(C)]` uniform blocks and the texture pyramids, byte for byte.
