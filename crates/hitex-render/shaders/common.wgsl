@@ -11,3 +11,8 @@ fn linear_to_srgb(l: f32) -> f32 {
     return 1.055 * pow(c, 1.0 / 2.4) - 0.055;
 }
 
+
+// Linear RGB to an opaque sRGB-encoded colour target value.
+fn encode(c: vec3<f32>) -> vec4<f32> {
+    return vec4<f32>(linear_to_srgb(c.x), linear_to_srgb(c.y), linear_to_srgb(c.z), 1.0);
+}

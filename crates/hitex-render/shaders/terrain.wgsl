@@ -262,10 +262,6 @@ fn span_sample(s: Span, me: u32) -> vec4<f32> {
 }
 
 
-fn encode(rgb: vec3<f32>) -> vec4<f32> {
-    return vec4<f32>(linear_to_srgb(rgb.x), linear_to_srgb(rgb.y), linear_to_srgb(rgb.z), 1.0);
-}
-
 fn sky(y: f32) -> vec3<f32> {
     let s = 1.0 - y / f32(fly.sizes.y);
     return vec3<f32>(0.55 + 0.2 * s, 0.68 + 0.15 * s, 0.86);

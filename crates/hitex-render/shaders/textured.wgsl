@@ -187,10 +187,6 @@ fn sample(uv_in: vec2<f32>, jac: vec4<f32>) -> vec4<f32> {
 // ---- output ----
 
 
-fn encode(c: vec3<f32>) -> vec4<f32> {
-    return vec4<f32>(linear_to_srgb(c.x), linear_to_srgb(c.y), linear_to_srgb(c.z), 1.0);
-}
-
 fn level_color(lambda: f32) -> vec3<f32> {
     var colors = array<vec3<f32>, 12>(
         vec3<f32>(0.10, 0.10, 0.60), vec3<f32>(0.10, 0.30, 0.90), vec3<f32>(0.10, 0.60, 0.90),

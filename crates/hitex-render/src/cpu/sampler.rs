@@ -28,6 +28,7 @@ pub struct LaneSampler<'a> {
     lut: &'static [f32; 256],
     /// True when the program runs at AVX-512: the bilinear reads then go
     /// through [`wide::bilinear`]'s vector gathers.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     wide: bool,
 }
 

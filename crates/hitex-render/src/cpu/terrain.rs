@@ -60,6 +60,7 @@ struct Program<'a> {
     alpha: &'static [f32; 256],
     /// True when the programs run at AVX-512: a block whose lanes read one
     /// map then reads it through [`wide::footprints`]' vector gathers.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     wide: bool,
 }
 
@@ -1082,6 +1083,10 @@ fn bind<'a>(
     if pages.levels == 0 || pages.origins.len() != pages.levels as usize {
         return Err(RenderError::Invalid("the page table has no levels".into()));
     }
+    if pages.levels > 31 {
+        // a level's shift to a coarser map's texels stays below 32 bits
+        return Err(RenderError::Invalid(format!("the page table has {} levels; at most 31", pages.levels)));
+    }
     let per = pages.per_side as usize;
     if pages.slots.len() != pages.levels as usize * per * per
         || u.sizes[2] != pages.levels
@@ -1250,6 +1255,22 @@ mod tests {
             }
         }
         FlyPages { levels, per_side: per, origins, slots, maps }
+    }
+
+    #[test]
+    fn page_tables_past_31_levels_are_refused() {
+        let levels = 32;
+        let pages = FlyPages {
+            levels,
+            per_side: 1,
+            origins: vec![[0, 0]; levels as usize],
+            slots: vec![None; levels as usize],
+            maps: Default::default(),
+        };
+        let cam = FlyCamera::new(100.0, 100.0, 50.0, 40.0, 0.0, 50.0);
+        let u = FlyUniform::new(&cam, 16, 16, levels, 1);
+        let e = render_fly(&u, &pages, FlyGround::Flat).err().map(|e| e.to_string());
+        assert_eq!(e.as_deref(), Some("the page table has 32 levels; at most 31"));
     }
 
     #[test]
