@@ -26,8 +26,9 @@ pub struct LaneSampler<'a> {
     levels: Vec<Level<'a>>,
     opts: SamplerOptions,
     lut: &'static [f32; 256],
-    /// True when the program runs at AVX-512: the bilinear reads then go
-    /// through [`wide::bilinear`]'s vector gathers.
+    /// True when the program runs at AVX-512 with fast gathers
+    /// ([`simd::vector_gathers`]): the bilinear reads then go through
+    /// [`wide::bilinear`]'s vector gathers.
     #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     wide: bool,
 }
@@ -52,7 +53,7 @@ impl<'a> LaneSampler<'a> {
     pub fn new(pyr: &'a MipPyramid, opts: SamplerOptions) -> Self {
         let levels =
             pyr.levels().iter().map(|l| Level { texels: l.texels(), width: l.width(), height: l.height() }).collect();
-        let wide = simd::level_for_gathers() == simd::SimdLevel::Avx512 && simd::SimdLevel::Avx512.available();
+        let wide = simd::vector_gathers(simd::level_for_gathers());
         Self { levels, opts, lut: hitex_core::texture::image::decode_table(pyr.color_space()), wide }
     }
 

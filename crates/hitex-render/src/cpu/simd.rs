@@ -222,6 +222,29 @@ pub fn level_for_gathers() -> SimdLevel {
     }
 }
 
+/// Whether a sampler's reads at `l` go through vector gathers: at AVX-512
+/// where the processor runs it and its gathers are fast
+/// ([`gathers_are_fast`]). AVX2 gathers were measured on an AMD Zen 3 against
+/// the lane loops and ran no faster, so AVX2 and the narrower levels read
+/// lane by lane.
+pub fn vector_gathers(l: SimdLevel) -> bool {
+    l == SimdLevel::Avx512 && l.available() && gathers_are_fast()
+}
+
+/// False where the kernel reports the Gather Data Sampling microcode
+/// mitigation (`/sys/devices/system/cpu/vulnerabilities/gather_data_sampling`:
+/// "Mitigation: Microcode"), under which a vector gather takes several times
+/// its lane loop's time (Intel Skylake to Tiger Lake); true elsewhere
+/// ("Not affected", AMD processors, no such file).
+pub fn gathers_are_fast() -> bool {
+    static FAST: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *FAST.get_or_init(|| {
+        std::fs::read_to_string("/sys/devices/system/cpu/vulnerabilities/gather_data_sampling")
+            .map(|s| !s.trim_start().starts_with("Mitigation: Microcode"))
+            .unwrap_or(true)
+    })
+}
+
 /// Makes the CPU backend run at `l` from now on (process-wide).
 pub fn set_level(l: SimdLevel) -> Result<(), crate::RenderError> {
     if !l.available() {

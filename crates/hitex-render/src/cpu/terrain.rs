@@ -58,8 +58,9 @@ struct Program<'a> {
     lut: &'static [f32; 256],
     /// `a / 255` for every 8-bit alpha (a load instead of a division).
     alpha: &'static [f32; 256],
-    /// True when the programs run at AVX-512: a block whose lanes read one
-    /// map then reads it through [`wide::footprints`]' vector gathers.
+    /// True when the programs run at AVX-512 with fast gathers
+    /// ([`super::simd::vector_gathers`]): a block whose lanes read one map
+    /// then reads it through [`wide::footprints`]' vector gathers.
     #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     wide: bool,
 }
@@ -1115,7 +1116,7 @@ fn bind<'a>(
         generic,
         lut: decode_table(ColorSpace::Srgb),
         alpha: decode_table(ColorSpace::Linear),
-        wide: super::simd::level() == super::simd::SimdLevel::Avx512 && super::simd::SimdLevel::Avx512.available(),
+        wide: super::simd::vector_gathers(super::simd::level()),
     })
 }
 
@@ -1271,6 +1272,42 @@ mod tests {
         let u = FlyUniform::new(&cam, 16, 16, levels, 1);
         let e = render_fly(&u, &pages, FlyGround::Flat).err().map(|e| e.to_string());
         assert_eq!(e.as_deref(), Some("the page table has 32 levels; at most 31"));
+    }
+
+    /// The trilinear reads as AVX-512 gathers return the lane loop's bits,
+    /// on views whose blocks read one map, several maps, empty slots and maps
+    /// standing in for a finer level.
+    #[test]
+    fn trilinear_gathers_read_the_lane_loops_bits() {
+        if !super::super::simd::SimdLevel::Avx512.available() {
+            eprintln!("SKIPPED: trilinear_gathers_read_the_lane_loops_bits: this processor lacks AVX-512");
+            assert!(!std::env::var("HITEX_REQUIRE_AVX512").is_ok_and(|v| v == "1"), "HITEX_REQUIRE_AVX512=1");
+            return;
+        }
+        let pages = pages();
+        for &(x, y, alt, pitch, heading) in &[
+            (1024.0, 1024.0, 300.0, 20.0, 20.0),
+            (700.0, 1500.0, 80.0, 60.0, 300.0),
+            (1200.0, 900.0, 900.0, 80.0, 135.0),
+        ] {
+            let cam = FlyCamera::new(x, y, alt, pitch, heading, 50.0);
+            let (w, h) = (96u32, 64u32);
+            let u = FlyUniform::new(&cam, w, h, pages.levels, pages.per_side);
+            let mut wide = bind(&u, &pages, None).unwrap();
+            wide.wide = true;
+            let mut lanes = bind(&u, &pages, None).unwrap();
+            lanes.wide = false;
+            for py in 0..h {
+                for x0 in (0..w).step_by(LANES) {
+                    let (a, b) = (wide.shade_flat_lanes(x0, py), lanes.shade_flat_lanes(x0, py));
+                    for c in 0..3 {
+                        for i in 0..LANES {
+                            assert_eq!(a[c][i].to_bits(), b[c][i].to_bits(), "({x0}, {py}) lane {i}");
+                        }
+                    }
+                }
+            }
+        }
     }
 
     #[test]
