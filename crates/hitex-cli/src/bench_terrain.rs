@@ -8,7 +8,7 @@ use crate::bench::{Backends, CaseFn, Report, print_table, run_case_fns};
 use crate::terrain_store_cmd::{flight_area, frame_setup, open_cache};
 use crate::{CliError, parse_size};
 use hitex_core::terrain::path::PathKey;
-use hitex_core::texture::span::{BankModel, RgbaFrame, psnr, ssim};
+use hitex_core::texture::span::{BankModel, psnr, ssim};
 use hitex_io::gst::{BuildOptions, ProceduralSource, StoreMeta, TILE, TileSource, build_store};
 use hitex_render::cpu::terrain::render_fly;
 use hitex_render::terrain::flight::FlightArea;
@@ -158,12 +158,11 @@ pub fn terrain(a: TerrainArgs) -> Result<(), CliError> {
         let cam = area.camera_at(&key(i), 45.0);
         let (_, u, pages) =
             frame_setup(&mut cache.borrow_mut(), &meta, &cam, (w, h), 45.0, per_side, false, &mut start);
-        let rgba = |f: hitex_render::Frame| RgbaFrame { width: f.width, height: f.height, rgba: f.rgba };
-        let reference = rgba(render_fly(&u, &pages, FlyGround::Flat)?.frame);
+        let reference = render_fly(&u, &pages, FlyGround::Flat)?.frame;
         for (k, s) in FlySampler::ALL[1..].iter().enumerate() {
             let f = render_fly(&u.with_sampler(*s), &pages, FlyGround::Flat)?;
             let banks = f.banks.unwrap_or_default();
-            let f = rgba(f.frame);
+            let f = f.frame;
             if acc.len() <= k {
                 acc.push((0.0, 0.0, BankModel::default()));
             }

@@ -733,7 +733,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 ToneMapArg::Reinhard => ToneMap::Reinhard,
                 ToneMapArg::Aces => ToneMap::Aces,
             };
-            let mut r = open_renderer(backend.into())?;
+            let mut r = open_renderer(backend)?;
             let t = Instant::now();
             let frame = render_frame(&mut r, &Job::Btf { surface: &prepared, camera, light }, size)?;
             let ms = t.elapsed().as_secs_f64() * 1e3;

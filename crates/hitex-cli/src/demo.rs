@@ -206,7 +206,8 @@ fn terrain_showcase(
     h: u32,
     report: &mut Report<'_>,
 ) -> Result<usize, CliError> {
-    use crate::terrain_store_cmd::{BuildArgs, FlyArgs, GroundArg, SamplerArg, build, fly};
+    use crate::terrain_store_cmd::{BuildArgs, FlyArgs, GroundArg, build, fly};
+    use hitex_render::terrain::FlySampler;
     let dir = out.join("olinda");
     hitex_io::create_output_dir(&dir)?;
     let (dem, image) = (dir.join("olinda_dem_utm25s.tif"), dir.join("L7_ETMs.tif"));
@@ -226,12 +227,7 @@ fn terrain_showcase(
         max_maps: crate::terrain_store_cmd::DEFAULT_MAX_MAPS,
         ignore_free_space: false,
     })?;
-    let backend = match backend {
-        BackendChoice::Auto => crate::Backend::Auto,
-        BackendChoice::Cpu => crate::Backend::Cpu,
-        BackendChoice::Gpu => crate::Backend::Gpu,
-    };
-    let flight = |frames: u32, size: (u32, u32), sampler: SamplerArg, output: std::path::PathBuf| FlyArgs {
+    let flight = |frames: u32, size: (u32, u32), sampler: FlySampler, output: std::path::PathBuf| FlyArgs {
         store: store.clone(),
         path: None,
         frames,
@@ -255,7 +251,7 @@ fn terrain_showcase(
     };
     let frames_dir = out.join("terrain-flight");
     let t = Instant::now();
-    fly(flight(3, ((w / 3).max(2) & !1, h & !1), SamplerArg::Trilinear, frames_dir.clone()))?;
+    fly(flight(3, ((w / 3).max(2) & !1, h & !1), FlySampler::Trilinear, frames_dir.clone()))?;
     let ms = t.elapsed().as_secs_f64() * 1e3;
     let panels = (0..3).map(|f| load(&frames_dir.join(format!("frame-{f:04}.png")))).collect::<Result<Vec<_>, _>>()?;
     report(
@@ -267,9 +263,8 @@ fn terrain_showcase(
     let size = ((w / 4).max(2) & !1, (h / 2).max(2) & !1);
     let t = Instant::now();
     let mut panels = Vec::new();
-    for (name, s) in [("trilinear", SamplerArg::Trilinear), ("span3", SamplerArg::Span3), ("span4", SamplerArg::Span4)]
-    {
-        let d = out.join(format!("terrain-{name}"));
+    for s in [FlySampler::Trilinear, FlySampler::Span3, FlySampler::Span4] {
+        let d = out.join(format!("terrain-{}", s.name()));
         fly(flight(1, size, s, d.clone()))?;
         panels.push(load(&d.join("frame-0000.png"))?);
     }

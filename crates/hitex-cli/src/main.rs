@@ -34,7 +34,7 @@ mod terrain_store_cmd;
 #[cfg(feature = "viewer")]
 mod view;
 
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Parser, Subcommand};
 use hitex_core::scene::RenderMode;
 use hitex_render::{AnyRenderer, BackendChoice, Frame, Job, OpenOptions, PreparedScene, RenderError, Renderer};
 use std::path::{Path, PathBuf};
@@ -85,7 +85,7 @@ enum Command {
         backend: Backend,
         /// Output mode (default: the scene's).
         #[arg(long, value_enum)]
-        mode: Option<Mode>,
+        mode: Option<RenderMode>,
     },
     /// Exact per-pixel NURBS surfaces: render, info, eval, export, check, deviation.
     Nurbs {
@@ -132,41 +132,8 @@ enum BenchCommand {
     Terrain(bench_terrain::TerrainArgs),
 }
 
-#[derive(Clone, Copy, ValueEnum, PartialEq, Eq, Debug)]
-enum Backend {
-    Auto,
-    Cpu,
-    Gpu,
-}
-
-#[derive(Clone, Copy, ValueEnum, Debug)]
-enum Mode {
-    Shaded,
-    Uv,
-    Level,
-    Normal,
-}
-
-impl From<Mode> for RenderMode {
-    fn from(m: Mode) -> Self {
-        match m {
-            Mode::Shaded => RenderMode::Shaded,
-            Mode::Uv => RenderMode::Uv,
-            Mode::Level => RenderMode::Level,
-            Mode::Normal => RenderMode::Normal,
-        }
-    }
-}
-
-impl From<Backend> for BackendChoice {
-    fn from(b: Backend) -> Self {
-        match b {
-            Backend::Auto => BackendChoice::Auto,
-            Backend::Cpu => BackendChoice::Cpu,
-            Backend::Gpu => BackendChoice::Gpu,
-        }
-    }
-}
+/// The backend a command renders on (`auto`, `cpu`, `gpu`).
+pub(crate) use hitex_render::BackendChoice as Backend;
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT"))?;
@@ -298,17 +265,17 @@ fn run(cli: Cli) -> Result<(), CliError> {
                 say_part!("{}", hitex_core::scene::SHOWCASE_TOML);
                 return Ok(());
             }
-            demo::run(&out, backend.into(), size)
+            demo::run(&out, backend, size)
         }
         Command::Render { scene, output, size, backend, mode } => {
             image_out(&output)?;
             let mut s = hitex_io::load_scene(&scene)?;
             if let Some(m) = mode {
-                s.mode = m.into();
+                s.mode = m;
             }
             let (w, h) = size.unwrap_or((s.width, s.height));
             let prepared = PreparedScene::new(&s);
-            let mut r = open_renderer(backend.into())?;
+            let mut r = open_renderer(backend)?;
             let spinner = indicatif::ProgressBar::new_spinner();
             spinner.set_message(format!("rendering {w}x{h} with {}", r.name()));
             spinner.enable_steady_tick(std::time::Duration::from_millis(120));
@@ -354,6 +321,14 @@ fn run(cli: Cli) -> Result<(), CliError> {
                 simd.width(),
                 levels.join(", ")
             );
+            let gathers = if hitex_render::cpu::simd::vector_gathers(simd) {
+                "AVX-512 vector gathers"
+            } else if simd == hitex_render::cpu::simd::SimdLevel::Avx512 {
+                "lane by lane (the kernel reports the Gather Data Sampling microcode mitigation, which slows vector gathers)"
+            } else {
+                "lane by lane"
+            };
+            say!("  texture reads: {gathers}");
             let textured = hitex_render::cpu::simd::level_for_gathers();
             if textured != simd {
                 say!(
@@ -568,5 +543,35 @@ mod tests {
         // text that only looks alike stays
         assert_eq!(plain("a (os error x) b (os error 12"), "a (os error x) b (os error 12");
         assert_eq!(plain("no error here"), "no error here");
+    }
+
+    /// The command line takes the libraries' enums, and clap's names for
+    /// them are the libraries' names (scene files, viewer, reports, JSON).
+    #[test]
+    fn command_line_names_are_the_libraries_names() {
+        use clap::ValueEnum;
+        use hitex_core::scene::RenderMode;
+        use hitex_render::nurbs::NurbsMode;
+        use hitex_render::terrain::FlySampler;
+        fn clap_name<T: ValueEnum>(v: &T) -> String {
+            v.to_possible_value().map(|p| p.get_name().to_string()).unwrap_or_default()
+        }
+        assert_eq!(NurbsMode::value_variants().len(), NurbsMode::ALL.len());
+        for (name, m) in NurbsMode::ALL {
+            assert_eq!(clap_name(&m), name);
+            assert_eq!(m.name(), name);
+        }
+        assert_eq!(RenderMode::value_variants().len(), RenderMode::ALL.len());
+        for (name, m) in RenderMode::ALL {
+            assert_eq!(clap_name(&m), name);
+            assert_eq!(m.name(), name);
+        }
+        assert_eq!(FlySampler::value_variants(), FlySampler::ALL);
+        for s in FlySampler::ALL {
+            assert_eq!(clap_name(&s), s.name());
+            assert_eq!(FlySampler::from_name(s.name()), Some(s));
+        }
+        let backends: Vec<String> = super::Backend::value_variants().iter().map(clap_name).collect();
+        assert_eq!(backends, ["auto", "cpu", "gpu"]);
     }
 }

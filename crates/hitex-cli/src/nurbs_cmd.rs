@@ -1,7 +1,7 @@
 //! `hitex nurbs …`: exact per-pixel NURBS surfaces.
 
 use crate::{Backend, CliError, open_renderer, parse_size, render_frame, save};
-use clap::{Args, Subcommand, ValueEnum};
+use clap::{Args, Subcommand};
 use glam::Vec3;
 use hitex_io::models::{NurbsModel, load_model};
 use hitex_render::nurbs::{ModelView, NurbsMode, PreparedNurbs, UpAxis};
@@ -64,62 +64,6 @@ pub enum NurbsCommand {
     },
 }
 
-/// Display modes on the command line.
-#[derive(Clone, Copy, ValueEnum, Debug, PartialEq, Eq)]
-pub enum ModeArg {
-    /// Lit surface.
-    Shaded,
-    /// Isophote bands.
-    Isophote,
-    /// Reflection lines.
-    Zebra,
-    /// Highlight lines.
-    Highlight,
-    /// Gaussian curvature.
-    Gauss,
-    /// Mean curvature.
-    Mean,
-    /// Isophotes of interpolated vertex normals (the paper's Fig. 4 comparison).
-    VertexNormals,
-    /// Normals as RGB.
-    Normal,
-    /// Draft angle against the pull direction: positive, within tolerance, negative.
-    Draft,
-    /// Where a ball tool of radius --min-radius cannot reach (concave, tighter than it).
-    Radius,
-    /// The larger principal curvature κ1.
-    K1,
-    /// The smaller principal curvature κ2.
-    K2,
-    /// A mirror in a procedural photo studio (soft boxes behind and above the viewer): highlights
-    /// as a class-A surfacer judges them.
-    Reflection,
-    /// Signed deviation from --reference (a scan's mesh or points): green within --tolerance,
-    /// yellow to red outside the surface, cyan to blue inside.
-    Deviation,
-}
-
-impl From<ModeArg> for NurbsMode {
-    fn from(m: ModeArg) -> Self {
-        match m {
-            ModeArg::Shaded => NurbsMode::Shaded,
-            ModeArg::Isophote => NurbsMode::Isophote,
-            ModeArg::Zebra => NurbsMode::Zebra,
-            ModeArg::Highlight => NurbsMode::Highlight,
-            ModeArg::Gauss => NurbsMode::Gauss,
-            ModeArg::Mean => NurbsMode::Mean,
-            ModeArg::VertexNormals => NurbsMode::VertexNormals,
-            ModeArg::Normal => NurbsMode::Normal,
-            ModeArg::Draft => NurbsMode::Draft,
-            ModeArg::Radius => NurbsMode::Radius,
-            ModeArg::K1 => NurbsMode::K1,
-            ModeArg::K2 => NurbsMode::K2,
-            ModeArg::Deviation => NurbsMode::Deviation,
-            ModeArg::Reflection => NurbsMode::Reflection,
-        }
-    }
-}
-
 /// Arguments of `hitex nurbs render`.
 #[derive(Args)]
 pub struct RenderArgs {
@@ -130,8 +74,8 @@ pub struct RenderArgs {
     #[arg(long, allow_negative_numbers = true)]
     pub chord: Option<f64>,
     /// Display mode.
-    #[arg(long, value_enum, default_value_t = ModeArg::Shaded)]
-    pub mode: ModeArg,
+    #[arg(long, value_enum, default_value_t = NurbsMode::Shaded)]
+    pub mode: NurbsMode,
     /// Output PNG.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -1256,7 +1200,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             if let Some(w) = simplified_trims_warning(&p.packed.trims_simplified) {
                 eprintln!("hitex: warning: {}: {w}", model.name);
             }
-            p.mode = a.mode.into();
+            p.mode = a.mode;
             p.bands = a.bands;
             p.stripes = a.stripes;
             p.boundaries = a.boundaries;
@@ -1314,7 +1258,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             let view = ModelView { up, turn_deg: a.turn, elevation_deg: a.elevation };
             let window = view_window(a.size.0, a.size.1, has_legend(p.mode) || a.continuity);
             let cam = p.view_camera(&view, a.size.0 as f32 / a.size.1 as f32, window);
-            let mut r = open_renderer(a.backend.into())?;
+            let mut r = open_renderer(a.backend)?;
             let t = Instant::now();
             let mut f = render_frame(&mut r, &Job::Nurbs { model: &p, camera: cam }, a.size)?;
             let ms = t.elapsed().as_secs_f64() * 1e3;

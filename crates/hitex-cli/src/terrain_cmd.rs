@@ -480,7 +480,7 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
         nurbs_mode: "shaded".into(),
     };
     let prepared = PreparedScene::new(&scene);
-    let mut r = open_renderer(a.backend.into())?;
+    let mut r = open_renderer(a.backend)?;
     let t = Instant::now();
     let mut f = render_frame(&mut r, &Job::Scene { scene: &prepared, camera: prepared.camera }, a.size)?;
     let ms = t.elapsed().as_secs_f64() * 1e3;
@@ -561,7 +561,7 @@ pub(crate) fn ground_texture(
 pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
     crate::keep_going_on_closed_stdout();
     use hitex_core::texture::span::{
-        BankModel, FlightView, RgbaFrame, SpanFilter, SpanOptions, SpanScheme, memory_for_pyramid, psnr, render_spans,
+        BankModel, FlightView, SpanFilter, SpanOptions, SpanScheme, memory_for_pyramid, psnr, render_spans,
         render_trilinear, ssim,
     };
     for (name, v) in [("--pitch", a.pitch), ("--heading", a.heading), ("--fov", a.fov)] {
@@ -636,7 +636,7 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
     // per-pixel trilinear: the reference
     let pb = crate::btf_cmd::bar(views.len() as u64 * 5, "spans");
     let mut times = Vec::new();
-    let mut reference: Vec<RgbaFrame> = Vec::new();
+    let mut reference: Vec<hitex_render::Frame> = Vec::new();
     for v in &views {
         let t = Instant::now();
         reference.push(render_trilinear(&pyr, v, wrap));
@@ -676,7 +676,7 @@ pub(crate) fn spans(a: SpansArgs) -> Result<(), CliError> {
         ("bicubic4", SpanScheme::Banks4x4, SpanFilter::Bicubic),
     ];
     let mut total_conflicts = 0u64;
-    let mut last: Vec<RgbaFrame> = Vec::new();
+    let mut last: Vec<hitex_render::Frame> = Vec::new();
     for (label, scheme, filter) in cases {
         let opts = SpanOptions { scheme, filter, wrap, level_shift: 0 };
         let mut banks = BankModel::new(scheme);

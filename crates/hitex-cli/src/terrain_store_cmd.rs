@@ -624,8 +624,8 @@ pub struct FlyArgs {
     #[arg(long, value_enum, default_value_t = GroundArg::Auto)]
     pub ground: GroundArg,
     /// Texture filter: per-pixel trilinear, 2×2 spans from 3×3 / 4×4 banks, or bicubic.
-    #[arg(long, value_enum, default_value_t = SamplerArg::Trilinear)]
-    pub sampler: SamplerArg,
+    #[arg(long, value_enum, default_value_t = FlySampler::Trilinear)]
+    pub sampler: FlySampler,
     /// Heights × this over the relief.
     #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
     pub exaggeration: f64,
@@ -647,30 +647,6 @@ pub enum GroundArg {
     Flat,
     /// The store's DEM as a mesh.
     Relief,
-}
-
-/// The flight's texture filter.
-#[derive(Clone, Copy, clap::ValueEnum, PartialEq, Eq, Debug)]
-pub enum SamplerArg {
-    /// Per pixel, eq. (1)–(4).
-    Trilinear,
-    /// 2×2 spans, 3×3 banks.
-    Span3,
-    /// 2×2 spans, 4×4 banks.
-    Span4,
-    /// Catmull-Rom inside the 4×4-bank mspan.
-    Bicubic,
-}
-
-impl From<SamplerArg> for FlySampler {
-    fn from(s: SamplerArg) -> Self {
-        match s {
-            SamplerArg::Trilinear => FlySampler::Trilinear,
-            SamplerArg::Span3 => FlySampler::Span3,
-            SamplerArg::Span4 => FlySampler::Span4,
-            SamplerArg::Bicubic => FlySampler::Bicubic,
-        }
-    }
 }
 
 /// The DEM a store holds beside its maps (`dem.*`, copied in by `terrain
@@ -855,9 +831,9 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
         .map_err(|e| CliError::Input(e.to_string()))?
         .first()
         .map_or(6, |l| l.per_side);
-    let sampler = FlySampler::from(a.sampler);
+    let sampler = a.sampler;
     let mut cache = open_cache(store.clone(), a.budget)?;
-    let mut renderer = open_renderer(a.backend.into())?;
+    let mut renderer = open_renderer(a.backend)?;
     let (t0, t1) = keys.span();
     let mut times = Vec::new();
     let mut peak = (0usize, 0usize);

@@ -8,7 +8,7 @@
 //! equals the headless render of the same camera.
 
 use crate::{Backend, CliError, open_renderer, parse_size, render_frame, save};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use eframe::egui;
 use glam::{DVec2, Vec3};
 use hitex_core::btf::{Btf, Layout};
@@ -19,11 +19,12 @@ use hitex_core::texture::ToneMap;
 use hitex_core::texture::bc1::Bc1Encoder;
 use hitex_core::texture::sampler::Wrap;
 use hitex_core::texture::span::{
-    BankModel, FlightView, RgbaFrame, SpanFilter, SpanOptions, SpanScheme, render_spans, render_trilinear,
+    BankModel, FlightView, SpanFilter, SpanOptions, SpanScheme, render_spans, render_trilinear,
 };
 use hitex_io::gst::StoreMeta;
 use hitex_render::btf::{BtfSurface, PreparedBtf};
 use hitex_render::nurbs::{NurbsMode, PreparedNurbs};
+use hitex_render::terrain::FlySampler;
 use hitex_render::{AnyRenderer, Job, Renderer};
 use hitex_render::{Frame, PreparedScene};
 use std::path::{Path, PathBuf};
@@ -58,19 +59,6 @@ pub struct ViewArgs {
     /// Frames to show before the screenshot.
     #[arg(long, default_value_t = 3)]
     pub frames: u32,
-}
-
-/// Terrain display modes of a ground image.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum GroundMode {
-    /// Per-pixel trilinear (eq. (1)–(4)).
-    Trilinear,
-    /// 2×2 spans from 3×3 interleaved banks.
-    Span3,
-    /// 2×2 spans from 4×4 banks.
-    Span4,
-    /// Bicubic from the 4×4-bank neighbourhood.
-    Bicubic,
 }
 
 /// An orbiting camera: the content's own camera until the user moves it.
@@ -174,7 +162,7 @@ enum Content {
     Nurbs { prepared: Box<PreparedNurbs>, orbit: Orbit, light: [f32; 2], light_moved: bool },
     Btf(Box<BtfView>),
     Store { meta: StoreMeta, cache: Box<ResidentMaps>, flight: Flight, fov: f64, per_side: u32, stats: String },
-    Ground { pyr: Box<MipPyramid>, wrap: Wrap, flight: Flight, mode: GroundMode, banks: String },
+    Ground { pyr: Box<MipPyramid>, wrap: Wrap, flight: Flight, mode: FlySampler, banks: String },
 }
 
 struct BtfView {
@@ -189,38 +177,28 @@ struct BtfView {
     light: [f32; 2],
 }
 
-const NURBS_MODES: [(NurbsMode, &str); 13] = [
-    (NurbsMode::Shaded, "shaded"),
-    (NurbsMode::Isophote, "isophote"),
-    (NurbsMode::Zebra, "zebra"),
-    (NurbsMode::Reflection, "reflection"),
-    (NurbsMode::Highlight, "highlight"),
-    (NurbsMode::Draft, "draft"),
-    (NurbsMode::Radius, "radius"),
-    (NurbsMode::Gauss, "gauss"),
-    (NurbsMode::Mean, "mean"),
-    (NurbsMode::K1, "k1"),
-    (NurbsMode::K2, "k2"),
-    (NurbsMode::VertexNormals, "vertex-normals"),
-    (NurbsMode::Normal, "normal"),
-];
-const SCENE_MODES: [(RenderMode, &str); 4] = [
-    (RenderMode::Shaded, "shaded"),
-    (RenderMode::Uv, "uv"),
-    (RenderMode::Level, "level"),
-    (RenderMode::Normal, "normal"),
-];
-const GROUND_MODES: [(GroundMode, &str); 4] = [
-    (GroundMode::Trilinear, "trilinear"),
-    (GroundMode::Span3, "span3"),
-    (GroundMode::Span4, "span4"),
-    (GroundMode::Bicubic, "bicubic"),
+/// The NURBS modes the viewer offers (deviation needs a reference: `hitex nurbs render`).
+const NURBS_MODES: [NurbsMode; 13] = [
+    NurbsMode::Shaded,
+    NurbsMode::Isophote,
+    NurbsMode::Zebra,
+    NurbsMode::Reflection,
+    NurbsMode::Highlight,
+    NurbsMode::Draft,
+    NurbsMode::Radius,
+    NurbsMode::Gauss,
+    NurbsMode::Mean,
+    NurbsMode::K1,
+    NurbsMode::K2,
+    NurbsMode::VertexNormals,
+    NurbsMode::Normal,
 ];
 const LAYOUTS: [Layout; 8] = [Layout::A, Layout::B, Layout::C, Layout::C2, Layout::D, Layout::E, Layout::E2, Layout::F];
 
-fn pick<T: Copy>(list: &[(T, &str)], name: &str) -> Result<T, CliError> {
-    list.iter().find(|(_, n)| *n == name).map(|(m, _)| *m).ok_or_else(|| {
-        let names: Vec<&str> = list.iter().map(|(_, n)| *n).collect();
+/// The choice of `list` called `name` (by the library's names).
+fn pick<T: Copy>(list: &[T], name_of: impl Fn(T) -> &'static str, name: &str) -> Result<T, CliError> {
+    list.iter().copied().find(|&m| name_of(m) == name).ok_or_else(|| {
+        let names: Vec<&str> = list.iter().map(|&m| name_of(m)).collect();
         CliError::Input(format!("--mode {name}: this view has the modes {}", names.join(", ")))
     })
 }
@@ -260,7 +238,7 @@ fn open(input: &str, mode: Option<&str>, aspect: f32) -> Result<Content, CliErro
         "toml" => {
             let mut scene = hitex_io::load_scene(path)?;
             if let Some(m) = mode {
-                scene.mode = pick(&SCENE_MODES, m)?;
+                scene.mode = pick(&RenderMode::ALL.map(|(_, m)| m), RenderMode::name, m)?;
             }
             let prepared = PreparedScene::new(&scene);
             let orbit = Orbit::new(prepared.camera);
@@ -270,7 +248,7 @@ fn open(input: &str, mode: Option<&str>, aspect: f32) -> Result<Content, CliErro
             let (pyr, wrap, _) = crate::terrain_cmd::ground_texture(Some(path), "3,2,1", "bricks", 1024)?;
             let side = pyr.width().max(pyr.height()) as f64;
             let flight = Flight { x: 0.5, y: 0.5, altitude: 0.3 * side, pitch: 60.0, heading: 30.0 };
-            let mode = mode.map_or(Ok(GroundMode::Trilinear), |m| pick(&GROUND_MODES, m))?;
+            let mode = mode.map_or(Ok(FlySampler::Trilinear), |m| pick(&FlySampler::ALL, FlySampler::name, m))?;
             Ok(Content::Ground { pyr: Box::new(pyr), wrap, flight, mode, banks: String::new() })
         }
         "hbtf" => open_btf(input, mode, aspect),
@@ -279,7 +257,7 @@ fn open(input: &str, mode: Option<&str>, aspect: f32) -> Result<Content, CliErro
             let model = hitex_io::models::load_model(input)?;
             let (mut prepared, _) = crate::nurbs_cmd::prepare_with(&model, crate::nurbs_cmd::Density::Auto, None);
             if let Some(m) = mode {
-                prepared.mode = pick(&NURBS_MODES, m)?;
+                prepared.mode = pick(&NURBS_MODES, NurbsMode::name, m)?;
             }
             // the model's up axis and a view fitted to the window, clear of a legend
             let legend = crate::nurbs_cmd::has_legend(prepared.mode);
@@ -316,10 +294,6 @@ fn open_btf(input: &str, mode: Option<&str>, aspect: f32) -> Result<Content, Cli
         orbit: Orbit::new(camera),
         light: [30.0, 45.0],
     })))
-}
-
-fn from_span(f: RgbaFrame) -> Frame {
-    Frame { width: f.width, height: f.height, rgba: f.rgba }
 }
 
 impl Content {
@@ -406,13 +380,13 @@ impl Content {
                     height: h,
                 };
                 let (scheme, filter) = match mode {
-                    GroundMode::Trilinear => {
+                    FlySampler::Trilinear => {
                         banks.clear();
-                        return Ok(from_span(render_trilinear(pyr, &view, *wrap)));
+                        return Ok(render_trilinear(pyr, &view, *wrap));
                     }
-                    GroundMode::Span3 => (SpanScheme::Banks3x3, SpanFilter::Bilinear),
-                    GroundMode::Span4 => (SpanScheme::Banks4x4, SpanFilter::Bilinear),
-                    GroundMode::Bicubic => (SpanScheme::Banks4x4, SpanFilter::Bicubic),
+                    FlySampler::Span3 => (SpanScheme::Banks3x3, SpanFilter::Bilinear),
+                    FlySampler::Span4 => (SpanScheme::Banks4x4, SpanFilter::Bilinear),
+                    FlySampler::Bicubic => (SpanScheme::Banks4x4, SpanFilter::Bicubic),
                 };
                 let opts = SpanOptions { scheme, filter, wrap: *wrap, level_shift: 0 };
                 let mut model = BankModel::new(scheme);
@@ -424,7 +398,7 @@ impl Content {
                     model.conflicts,
                     model.mean_level()
                 );
-                Ok(from_span(f))
+                Ok(f)
             }
         }
     }
@@ -480,7 +454,7 @@ impl Content {
         match self {
             Content::Scene { scene, prepared, .. } => {
                 let before = scene.mode;
-                mode_box(ui, &SCENE_MODES, &mut scene.mode);
+                mode_box(ui, &RenderMode::ALL.map(|(_, m)| m), RenderMode::name, &mut scene.mode);
                 if scene.mode != before {
                     let camera = prepared.camera;
                     **prepared = PreparedScene::new(scene);
@@ -494,7 +468,7 @@ impl Content {
             }
             Content::Nurbs { prepared, light, light_moved, .. } => {
                 let before = prepared.mode;
-                mode_box(ui, &NURBS_MODES, &mut prepared.mode);
+                mode_box(ui, &NURBS_MODES, NurbsMode::name, &mut prepared.mode);
                 changed |= prepared.mode != before;
                 changed |= ui.checkbox(&mut prepared.boundaries, "patch boundaries").changed();
                 changed |= ui.add(egui::Slider::new(&mut prepared.bands, 2..=60).text("isophote bands")).changed();
@@ -542,7 +516,7 @@ impl Content {
             }
             Content::Ground { mode, banks, flight, .. } => {
                 let before = *mode;
-                mode_box(ui, &GROUND_MODES, mode);
+                mode_box(ui, &FlySampler::ALL, FlySampler::name, mode);
                 changed |= *mode != before;
                 if !banks.is_empty() {
                     ui.label(banks.as_str());
@@ -559,11 +533,10 @@ impl Content {
     }
 }
 
-fn mode_box<T: Copy + PartialEq>(ui: &mut egui::Ui, list: &[(T, &str)], value: &mut T) {
-    let name = list.iter().find(|(m, _)| m == value).map_or("?", |(_, n)| *n);
-    egui::ComboBox::from_label("mode").selected_text(name).show_ui(ui, |ui| {
-        for (m, n) in list {
-            ui.selectable_value(value, *m, *n);
+fn mode_box<T: Copy + PartialEq>(ui: &mut egui::Ui, list: &[T], name_of: impl Fn(T) -> &'static str, value: &mut T) {
+    egui::ComboBox::from_label("mode").selected_text(name_of(*value)).show_ui(ui, |ui| {
+        for &m in list {
+            ui.selectable_value(value, m, name_of(m));
         }
     });
 }
@@ -630,7 +603,7 @@ impl eframe::App for ViewApp {
         egui::Panel::left("controls").resizable(false).default_size(300.0).show(ui, |ui| {
             ui.heading(format!("hitex view: {}", self.content.kind()));
             let backend = match self.content {
-                Content::Ground { mode: GroundMode::Trilinear, .. } => "cpu (reference sampler)".to_string(),
+                Content::Ground { mode: FlySampler::Trilinear, .. } => "cpu (reference sampler)".to_string(),
                 Content::Ground { .. } => "cpu (emulated bank memory)".to_string(),
                 _ => self.renderer.name(),
             };
@@ -756,7 +729,7 @@ pub fn run(a: ViewArgs) -> Result<(), CliError> {
     if std::env::var_os("DISPLAY").is_none_or(|d| d.is_empty()) {
         return Err(no_window("no display: DISPLAY is not set (hitex view opens an X11 window)"));
     }
-    let renderer = open_renderer(a.backend.into())?;
+    let renderer = open_renderer(a.backend)?;
     let failure = std::sync::Arc::new(std::sync::Mutex::new(None));
     let app = ViewApp {
         content,

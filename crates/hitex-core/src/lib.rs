@@ -13,6 +13,9 @@
 //!   curvature, trims, knot insertion and degree elevation.
 //! * [`scene`]: cameras, lights, triangle meshes, materials and the TOML scene
 //!   description with its embedded default.
+//! * [`frame`]: the RGBA8 frame every renderer returns.
+//! * [`metrics`]: image metrics, once for every crate: PSNR, SSIM, and the
+//!   comparison the parity tests and benches report.
 //! * [`tolerance`]: the named tolerances tests and comparisons state;
 //!   [`error`]: the crate's error type.
 //!
@@ -23,6 +26,8 @@
 
 pub mod btf;
 pub mod error;
+pub mod frame;
+pub mod metrics;
 pub mod nurbs;
 pub mod residency;
 pub mod scene;

@@ -162,16 +162,24 @@ impl Renderer for GpuRenderer {
     }
 }
 
-/// Which backend renders.
+/// Which backend renders (on the command line `auto`, `cpu`, `gpu`; with
+/// the `clap` feature, `clap::ValueEnum` derives these names).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum BackendChoice {
     /// A hardware GPU if there is one, else the CPU backend (a software
     /// rasterizer is slower than the CPU backend; see [`OpenOptions`]).
     #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "A hardware GPU if there is one, else the CPU backend (faster than a software GPU).")
+    )]
     Auto,
     /// The CPU backend.
+    #[cfg_attr(feature = "clap", value(help = "The CPU backend."))]
     Cpu,
     /// wgpu on the best adapter, a software one too; an error if none exists.
+    #[cfg_attr(feature = "clap", value(help = "wgpu on the best adapter, a software one (lavapipe) too."))]
     Gpu,
 }
 

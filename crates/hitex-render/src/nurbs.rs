@@ -20,47 +20,83 @@ pub fn prepared_degree_for(d: usize) -> Option<usize> {
 /// A patch's parameter range `((u0, u1), (v0, v1))`.
 pub type ParamRange = ((f64, f64), (f64, f64));
 
-/// What the NURBS fragment program shows.
+/// What the NURBS fragment program shows. Its names ([`NurbsMode::name`])
+/// are those of the command line (with the `clap` feature, `clap::ValueEnum`
+/// derives the same names).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum NurbsMode {
     /// Lit surface (Blinn–Phong) with the exact normal.
     #[default]
+    #[cfg_attr(feature = "clap", value(help = "Lit surface."))]
     Shaded,
     /// Isophotes: bands of equal angle between normal and light.
+    #[cfg_attr(feature = "clap", value(help = "Isophote bands."))]
     Isophote,
     /// Reflection lines of a striped environment.
+    #[cfg_attr(feature = "clap", value(help = "Reflection lines."))]
     Zebra,
     /// Highlight lines: where the normal line meets a plane of parallel
     /// light lines (view-independent, Beier & Chen).
+    #[cfg_attr(feature = "clap", value(help = "Highlight lines."))]
     Highlight,
     /// Gaussian curvature on a diverging colour ramp.
+    #[cfg_attr(feature = "clap", value(help = "Gaussian curvature."))]
     Gauss,
     /// Mean curvature on a diverging colour ramp.
+    #[cfg_attr(feature = "clap", value(help = "Mean curvature."))]
     Mean,
     /// Isophotes of normals interpolated from the tessellation's vertices
     /// (per-vertex evaluation, the paper's Fig. 4 comparison).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Isophotes of interpolated vertex normals (the paper's Fig. 4 comparison).")
+    )]
     VertexNormals,
     /// The exact normal as RGB.
+    #[cfg_attr(feature = "clap", value(help = "Normals as RGB."))]
     Normal,
     /// Draft angle against a pull direction in three classes: positive
     /// beyond the tolerance, within it, negative beyond it.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Draft angle against the pull direction: positive, within tolerance, negative.")
+    )]
     Draft,
     /// Where a ball tool of a given radius cannot reach: concave with a
     /// radius of curvature below it, concave above it, convex or flat.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Where a ball tool of radius --min-radius cannot reach (concave, tighter than it).")
+    )]
     Radius,
     /// The larger principal curvature κ1 on a diverging colour ramp (signed
     /// towards the normal that faces the viewer, as the mean curvature).
+    #[cfg_attr(feature = "clap", value(help = "The larger principal curvature κ1."))]
     K1,
     /// The smaller principal curvature κ2, same ramp and sign.
+    #[cfg_attr(feature = "clap", value(help = "The smaller principal curvature κ2."))]
     K2,
     /// A mirror reflecting a procedural photo studio (soft boxes behind
     /// and above the viewer, one at the side, a dark floor): the
     /// highlights a class-A surface is judged by, from the exact normal.
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            help = "A mirror in a procedural photo studio (soft boxes behind and above the viewer): highlights as a class-A surfacer judges them."
+        )
+    )]
     Reflection,
     /// Signed deviation from a reference mesh or point cloud
     /// ([`PreparedNurbs::set_deviation`]): green within the tolerance,
     /// yellow to red outside the surface, cyan to blue inside, grey where
     /// the reference has nothing near.
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            help = "Signed deviation from --reference (a scan's mesh or points): green within --tolerance, yellow to red outside the surface, cyan to blue inside."
+        )
+    )]
     Deviation,
 }
 

@@ -109,24 +109,35 @@ impl FlyPages {
     }
 }
 
-/// How a flight frame filters its maps.
+/// How a flight frame filters its maps. Its names ([`FlySampler::name`])
+/// are those of the command line, the viewer and the reports (with the
+/// `clap` feature, `clap::ValueEnum` derives the same names).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum FlySampler {
     /// Per pixel, eq. (1)–(4): level from the largest partial, trilinear.
     #[default]
+    #[cfg_attr(feature = "clap", value(help = "Per pixel, eq. (1)–(4)."))]
     Trilinear,
     /// 2×2 spans from 3×3 interleaved banks (eq. (8)–(10)).
+    #[cfg_attr(feature = "clap", value(help = "2×2 spans, 3×3 banks."))]
     Span3,
     /// 2×2 spans from 4×4 banks (no extra blur).
+    #[cfg_attr(feature = "clap", value(help = "2×2 spans, 4×4 banks."))]
     Span4,
     /// Catmull-Rom inside the 4×4-bank mspan of each span.
+    #[cfg_attr(feature = "clap", value(help = "Catmull-Rom inside the 4×4-bank mspan."))]
     Bicubic,
 }
 
 impl FlySampler {
     /// Every sampler, in report order.
     pub const ALL: [FlySampler; 4] = [FlySampler::Trilinear, FlySampler::Span3, FlySampler::Span4, FlySampler::Bicubic];
-    /// Name in reports and JSON.
+    /// The sampler of a name.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|s| s.name() == name)
+    }
+    /// Name on the command line, in reports and JSON.
     pub fn name(self) -> &'static str {
         match self {
             FlySampler::Trilinear => "trilinear",

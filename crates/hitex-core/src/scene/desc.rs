@@ -23,9 +23,12 @@ pub const SHOWCASE_TOML: &str = include_str!("showcase.toml");
 /// Largest accepted output side in pixels.
 pub const MAX_OUTPUT_SIDE: u32 = 16384;
 
-/// What the fragment program writes.
+/// What the fragment program writes. Its names ([`RenderMode::name`]) are
+/// those of scene files and the command line (with the `clap` feature,
+/// `clap::ValueEnum` derives the same names).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum RenderMode {
     /// Lit, textured surfaces.
     #[default]
@@ -46,6 +49,10 @@ impl RenderMode {
         ("level", RenderMode::Level),
         ("normal", RenderMode::Normal),
     ];
+    /// The scene-file and command-line name of the mode.
+    pub fn name(self) -> &'static str {
+        Self::ALL.iter().find(|(_, m)| *m == self).map_or("shaded", |(n, _)| n)
+    }
     /// Index used by both backends' fragment programs.
     pub fn index(self) -> u32 {
         match self {

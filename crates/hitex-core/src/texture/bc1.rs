@@ -161,22 +161,9 @@ pub fn decode(blocks: &[u8], width: u32, height: u32, slices: u32) -> Result<Vec
 }
 
 /// Peak signal-to-noise ratio of `decoded` against `original` (RGBA8; the
-/// three colour channels weighed equally, alpha ignored):
-/// 10·log10(255² / MSE), in dB; infinite when identical.
-pub fn psnr_rgb(original: &[u8], decoded: &[u8]) -> f64 {
-    let (mut se, mut n) = (0.0f64, 0u64);
-    for (a, b) in original.chunks_exact(4).zip(decoded.chunks_exact(4)) {
-        for k in 0..3 {
-            let d = a[k] as f64 - b[k] as f64;
-            se += d * d;
-        }
-        n += 3;
-    }
-    if se == 0.0 || n == 0 {
-        return f64::INFINITY;
-    }
-    10.0 * (255.0f64 * 255.0 / (se / n as f64)).log10()
-}
+/// three colour channels weighed equally, alpha ignored), in dB:
+/// [`crate::metrics::psnr_rgb`].
+pub use crate::metrics::psnr_rgb;
 
 #[cfg(test)]
 mod tests {

@@ -82,6 +82,7 @@
 use super::image::linear_to_srgb_u8;
 use super::pyramid::MipPyramid;
 use super::sampler::{Filter, Jacobian, LevelRule, SamplerOptions, Wrap, sample};
+use crate::frame::Frame;
 use glam::{Vec2, Vec4};
 use rayon::prelude::*;
 
@@ -449,7 +450,11 @@ fn floor_i64(x: f64) -> i64 {
     x.floor() as i64
 }
 
-fn catmull_rom(t: f32) -> [f32; 4] {
+/// The four Catmull-Rom weights (a = −½) of the taps at −1, 0, 1, 2 for a
+/// position `t` ∈ [0, 1) past tap 0: the one bicubic kernel of the span
+/// samplers, the CPU flight program's included.
+#[inline(always)]
+pub fn catmull_rom(t: f32) -> [f32; 4] {
     let t2 = t * t;
     let t3 = t2 * t;
     [0.5 * (-t3 + 2.0 * t2 - t), 0.5 * (3.0 * t3 - 5.0 * t2 + 2.0), 0.5 * (-3.0 * t3 + 4.0 * t2 + t), 0.5 * (t3 - t2)]
@@ -678,17 +683,6 @@ impl FlightView {
     }
 }
 
-/// An RGBA8 (sRGB-encoded) frame, rows top to bottom.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct RgbaFrame {
-    /// Width, pixels.
-    pub width: u32,
-    /// Height, pixels.
-    pub height: u32,
-    /// `width × height × 4` bytes.
-    pub rgba: Vec<u8>,
-}
-
 /// Colour of pixels above the horizon (sRGB).
 pub const SKY: [u8; 4] = [178, 203, 237, 255];
 
@@ -699,7 +693,7 @@ fn encode(c: Vec4) -> [u8; 4] {
 
 /// Renders `view` with the per-pixel trilinear sampler (eq. (1)–(4), level
 /// from the analytic Jacobian by eq. (2)): the conventional design.
-pub fn render_trilinear(pyr: &MipPyramid, view: &FlightView, wrap: Wrap) -> RgbaFrame {
+pub fn render_trilinear(pyr: &MipPyramid, view: &FlightView, wrap: Wrap) -> Frame {
     let (w, h) = (view.width, view.height);
     let opts = SamplerOptions { filter: Filter::Trilinear, wrap, level_rule: LevelRule::MaxPartial, lod_bias: 0.0 };
     let (tw, th) = (pyr.width(), pyr.height());
@@ -713,12 +707,12 @@ pub fn render_trilinear(pyr: &MipPyramid, view: &FlightView, wrap: Wrap) -> Rgba
             px.copy_from_slice(&c);
         }
     });
-    RgbaFrame { width: w, height: h, rgba }
+    Frame { width: w, height: h, rgba }
 }
 
 /// Renders `view` in 2×2 spans with [`sample_span`]; adds the bank traffic to
 /// `banks`. Spans on the right or bottom edge of odd sizes have fewer pixels.
-pub fn render_spans(pyr: &MipPyramid, view: &FlightView, opts: &SpanOptions, banks: &mut BankModel) -> RgbaFrame {
+pub fn render_spans(pyr: &MipPyramid, view: &FlightView, opts: &SpanOptions, banks: &mut BankModel) -> Frame {
     let (w, h) = (view.width, view.height);
     let (tw, th) = (pyr.width(), pyr.height());
     let mut rgba = vec![0u8; w as usize * h as usize * 4];
@@ -755,80 +749,34 @@ pub fn render_spans(pyr: &MipPyramid, view: &FlightView, opts: &SpanOptions, ban
     for m in models {
         banks.merge(m);
     }
-    RgbaFrame { width: w, height: h, rgba }
+    Frame { width: w, height: h, rgba }
 }
 
 /// Peak signal-to-noise ratio over RGB, dB (∞ for identical frames, NaN for
-/// frames of different sizes).
-pub fn psnr(a: &RgbaFrame, b: &RgbaFrame) -> f64 {
-    if a.width != b.width || a.height != b.height || a.rgba.len() != b.rgba.len() || a.rgba.is_empty() {
+/// frames of different sizes): [`crate::metrics::psnr_rgb`].
+pub fn psnr(a: &Frame, b: &Frame) -> f64 {
+    if a.width != b.width || a.height != b.height {
         return f64::NAN;
     }
-    let mut se = 0.0f64;
-    for (p, q) in a.rgba.chunks_exact(4).zip(b.rgba.chunks_exact(4)) {
-        for c in 0..3 {
-            let d = p[c] as f64 - q[c] as f64;
-            se += d * d;
-        }
-    }
-    let mse = se / (a.rgba.len() / 4 * 3) as f64;
-    if mse == 0.0 { f64::INFINITY } else { 10.0 * (255.0 * 255.0 / mse).log10() }
+    crate::metrics::psnr_rgb(&a.rgba, &b.rgba)
 }
 
-fn luma(f: &RgbaFrame) -> Vec<f64> {
-    f.rgba.chunks_exact(4).map(|p| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64).collect()
-}
-
-/// Mean SSIM of the luma (Rec. 709 weights on the 8-bit codes) over 8×8
-/// windows at a stride of 4 (the whole frame if smaller), with the usual
-/// constants `(0.01·255)²`, `(0.03·255)²`. 1 for identical frames, NaN for
-/// frames of different sizes.
-pub fn ssim(a: &RgbaFrame, b: &RgbaFrame) -> f64 {
-    if a.width != b.width || a.height != b.height || a.rgba.len() != b.rgba.len() || a.rgba.is_empty() {
+/// Mean SSIM of the luma (1 for identical frames, NaN for frames of
+/// different sizes): [`crate::metrics::ssim_luma`].
+pub fn ssim(a: &Frame, b: &Frame) -> f64 {
+    if a.width != b.width || a.height != b.height {
         return f64::NAN;
     }
-    let (w, h) = (a.width as usize, a.height as usize);
-    let (la, lb) = (luma(a), luma(b));
-    let (ww, wh) = (w.min(8), h.min(8));
-    let (c1, c2) = ((0.01f64 * 255.0).powi(2), (0.03f64 * 255.0).powi(2));
-    let (mut sum, mut n) = (0.0f64, 0usize);
-    let starts = |len: usize, win: usize| {
-        let mut v: Vec<usize> = (0..=len - win).step_by(4).collect();
-        if v.last() != Some(&(len - win)) {
-            v.push(len - win);
-        }
-        v
-    };
-    for y0 in starts(h, wh) {
-        for x0 in starts(w, ww) {
-            let (mut sa, mut sb, mut saa, mut sbb, mut sab) = (0.0, 0.0, 0.0, 0.0, 0.0);
-            for y in y0..y0 + wh {
-                for x in x0..x0 + ww {
-                    let (p, q) = (la[y * w + x], lb[y * w + x]);
-                    sa += p;
-                    sb += q;
-                    saa += p * p;
-                    sbb += q * q;
-                    sab += p * q;
-                }
-            }
-            let m = (ww * wh) as f64;
-            let (ma, mb) = (sa / m, sb / m);
-            let (va, vb, cov) = (saa / m - ma * ma, sbb / m - mb * mb, sab / m - ma * mb);
-            sum += ((2.0 * ma * mb + c1) * (2.0 * cov + c2)) / ((ma * ma + mb * mb + c1) * (va + vb + c2));
-            n += 1;
-        }
-    }
-    sum / n as f64
+    crate::metrics::ssim_luma(&a.rgba, &b.rgba, a.width, a.height)
 }
 
 /// A frame rendered both ways and compared.
 #[derive(Debug, Clone)]
 pub struct FrameComparison {
     /// Per-pixel trilinear (the conventional design).
-    pub trilinear: RgbaFrame,
+    pub trilinear: Frame,
     /// Span-parallel mapping.
-    pub span: RgbaFrame,
+    pub span: Frame,
     /// Bank traffic of the span frame.
     pub banks: BankModel,
     /// [`psnr`] of the span frame against the trilinear one.
@@ -1169,7 +1117,7 @@ mod tests {
             let c = render_both(&pyr, &bad, &SpanOptions::default());
             assert!(c.span.rgba.chunks_exact(4).all(|p| p == SKY));
         }
-        let empty = RgbaFrame { width: 0, height: 0, rgba: vec![] };
+        let empty = Frame { width: 0, height: 0, rgba: vec![] };
         assert!(psnr(&empty, &empty).is_nan() && ssim(&empty, &empty).is_nan());
     }
 

@@ -33,6 +33,7 @@ use glam::{Mat4, Vec3};
 use hitex_core::residency::MapKey;
 use hitex_core::texture::image::decode_table;
 use hitex_core::texture::sampler::floor;
+use hitex_core::texture::span::catmull_rom;
 use hitex_core::texture::span::{BankModel, SpanScheme};
 use hitex_core::texture::{ColorSpace, linear_to_srgb_u8};
 use rayon::prelude::*;
@@ -70,13 +71,6 @@ struct Program<'a> {
 struct Axis {
     i: [i32; 4],
     w: [f32; 4],
-}
-
-#[inline(always)]
-fn catmull_rom(t: f32) -> [f32; 4] {
-    let t2 = t * t;
-    let t3 = t2 * t;
-    [0.5 * (-t3 + 2.0 * t2 - t), 0.5 * (3.0 * t3 - 5.0 * t2 + 2.0), 0.5 * (-3.0 * t3 + 4.0 * t2 + t), 0.5 * (t3 - t2)]
 }
 
 /// Taps on one axis at texel position `q` inside the block `o ..= o + b − 1`.
