@@ -792,11 +792,39 @@ impl NurbsProgram<'_> {
             let pr = patch_ref(t, patch);
             let (ku, kv, cp, nu) = (pr.ku, pr.kv, pr.cp, pr.nu);
             if !filled {
-                simd::run(BicubicOp { su, sv, u: &u, v: &v, ku, kv, cp, nu, cam, light, m: &f.view_proj, out: &mut o });
+                simd::run(BicubicOp {
+                    su,
+                    sv,
+                    lanes,
+                    u: &u,
+                    v: &v,
+                    ku,
+                    kv,
+                    cp,
+                    nu,
+                    cam,
+                    light,
+                    m: &f.view_proj,
+                    out: &mut o,
+                });
                 filled = true;
                 continue;
             }
-            simd::run(BicubicOp { su, sv, u: &u, v: &v, ku, kv, cp, nu, cam, light, m: &f.view_proj, out: &mut g });
+            simd::run(BicubicOp {
+                su,
+                sv,
+                lanes,
+                u: &u,
+                v: &v,
+                ku,
+                kv,
+                cp,
+                nu,
+                cam,
+                light,
+                m: &f.view_proj,
+                out: &mut g,
+            });
             let mut m = lanes;
             while m != 0 {
                 let lane = m.trailing_zeros() as usize;
@@ -893,6 +921,12 @@ impl NurbsProgram<'_> {
     }
 }
 
+/// True when register `c` of `w` lanes holds one of `lanes`.
+#[inline(always)]
+fn holds(lanes: u16, c: usize, w: usize) -> bool {
+    (lanes as u32 >> (c * w)) & ((1u32 << w) - 1) != 0
+}
+
 /// What the bicubic lane kernel hands back per lane.
 #[derive(Default)]
 struct BicubicOut {
@@ -916,6 +950,9 @@ struct BicubicOut {
 struct BicubicOp<'a> {
     su: usize,
     sv: usize,
+    /// The group's lanes: registers holding none of them are skipped (their
+    /// lanes are another group's, or read by nobody).
+    lanes: u16,
     u: &'a Lanes,
     v: &'a Lanes,
     ku: &'a [f32],
@@ -1123,6 +1160,8 @@ pub struct BlockPointNormal {
 struct PointNormalOp<'a> {
     su: usize,
     sv: usize,
+    /// The group's lanes: registers holding none of them are skipped.
+    lanes: u16,
     u: &'a Lanes,
     v: &'a Lanes,
     ku: &'a [f32],
@@ -1140,6 +1179,9 @@ impl pulp::WithSimd for PointNormalOp<'_> {
         let (u, _) = S::as_simd_f32s(self.u);
         let (v, _) = S::as_simd_f32s(self.v);
         for c in 0..LANES / S::F32_LANES {
+            if !holds(self.lanes, c, S::F32_LANES) {
+                continue;
+            }
             let [sp, s_u, s_v] = point_partials(r, self.su, self.sv, u[c], v[c], self.ku, self.kv, self.cp, self.nu);
             let cr = [
                 r.sub(r.mul(s_u[1], s_v[2]), r.mul(s_u[2], s_v[1])),
@@ -1175,11 +1217,11 @@ pub fn eval_bicubic_block(t: &PackedNurbs, patch: usize, u: &Lanes, v: &Lanes) -
     let mut out = BlockPointNormal::default();
     for (k, &(su, sv, lanes)) in groups.iter().enumerate() {
         if k == 0 {
-            simd::run(PointNormalOp { su, sv, u: &u, v: &v, ku, kv, cp, nu, out: &mut out });
+            simd::run(PointNormalOp { su, sv, lanes, u: &u, v: &v, ku, kv, cp, nu, out: &mut out });
             continue;
         }
         let mut g = BlockPointNormal::default();
-        simd::run(PointNormalOp { su, sv, u: &u, v: &v, ku, kv, cp, nu, out: &mut g });
+        simd::run(PointNormalOp { su, sv, lanes, u: &u, v: &v, ku, kv, cp, nu, out: &mut g });
         for lane in (0..LANES).filter(|l| lanes & (1 << l) != 0) {
             for c in 0..3 {
                 out.p[c][lane] = g.p[c][lane];
@@ -1256,6 +1298,9 @@ impl pulp::WithSimd for BicubicOp<'_> {
         let (v, _) = S::as_simd_f32s(self.v);
         let o = self.out;
         for c in 0..LANES / w {
+            if !holds(self.lanes, c, w) {
+                continue;
+            }
             let zero = r.k(0.0);
             let [sp, s_u, s_v] = point_partials(r, self.su, self.sv, u[c], v[c], self.ku, self.kv, self.cp, self.nu);
             // exact normal (degenerate lanes are redone per lane by the caller)
