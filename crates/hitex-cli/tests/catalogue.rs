@@ -678,7 +678,7 @@ fn the_catalogue_matches_the_behaviour() {
     let have = std::fs::read_to_string(&path).unwrap_or_default();
     if !skipped.is_empty() {
         // without root or a GPU some rows cannot be made: check the others, line by line
-        eprintln!("SKIPPED catalogue rows (no tmpfs mount or no GPU adapter): {skipped:?}");
+        common::say_skipped(&format!("SKIPPED catalogue rows (no tmpfs mount or no GPU adapter): {skipped:?}"));
         if std::env::var("HITEX_REQUIRE_FAULTS").is_ok_and(|v| v == "1") {
             panic!("catalogue rows skipped with HITEX_REQUIRE_FAULTS=1: {skipped:?}");
         }

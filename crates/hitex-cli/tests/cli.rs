@@ -145,7 +145,7 @@ fn bench_texture_json_has_the_shared_shape() {
         assert_eq!(gpu, 3, "HITEX_REQUIRE_GPU=1 but the GPU backend did not run");
         assert_eq!(v["ratios"].as_array().unwrap().len(), 3);
     } else if gpu == 0 {
-        eprintln!("SKIPPED GPU part of bench_texture_json_has_the_shared_shape: no adapter");
+        common::say_skipped("SKIPPED GPU part of bench_texture_json_has_the_shared_shape: no adapter");
     }
 }
 

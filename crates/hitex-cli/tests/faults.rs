@@ -123,7 +123,7 @@ fn gpu_present() -> bool {
         if std::env::var("HITEX_REQUIRE_GPU").is_ok_and(|v| v == "1") {
             panic!("{msg}, and HITEX_REQUIRE_GPU=1");
         }
-        eprintln!("{msg}");
+        common::say_skipped(msg);
     }
     present
 }

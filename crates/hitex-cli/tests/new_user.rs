@@ -623,7 +623,10 @@ fn ridge_outlines_are_clean_on_both_backends() {
             out.to_str().unwrap(),
         ]);
         if backend == "gpu" && !o.status.success() && !require {
-            eprintln!("SKIPPED ridge outlines on the GPU backend: {}", String::from_utf8_lossy(&o.stderr));
+            common::say_skipped(&format!(
+                "SKIPPED ridge outlines on the GPU backend: {}",
+                String::from_utf8_lossy(&o.stderr)
+            ));
             continue;
         }
         assert!(o.status.success(), "{backend}: {}", String::from_utf8_lossy(&o.stderr));

@@ -32,7 +32,7 @@ impl Xvfb {
             if std::env::var("HITEX_REQUIRE_VIEWER").is_ok_and(|v| v == "1") {
                 panic!("{msg}, and HITEX_REQUIRE_VIEWER=1");
             }
-            eprintln!("{msg}");
+            common::say_skipped(msg);
             return None;
         };
         let x = Xvfb { child, display };

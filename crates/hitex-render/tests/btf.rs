@@ -107,7 +107,9 @@ fn gl_refuses_bc1_3d_codebooks_it_would_draw_black() {
     let mut gl = match hitex_render::GpuRenderer::with_backends(wgpu::Backends::GL) {
         Ok(g) => g,
         Err(e) if !require => {
-            eprintln!("SKIPPED gl_refuses_bc1_3d_codebooks_it_would_draw_black: no GL adapter ({e})");
+            common::say_skipped(&format!(
+                "SKIPPED gl_refuses_bc1_3d_codebooks_it_would_draw_black: no GL adapter ({e})"
+            ));
             return;
         }
         Err(e) => panic!("HITEX_REQUIRE_GL=1 but no GL adapter: {e}"),

@@ -88,7 +88,7 @@ fn gl_backend_matches_cpu() {
     let mut gl = match hitex_render::GpuRenderer::with_backends(wgpu::Backends::GL) {
         Ok(g) => g,
         Err(e) => {
-            eprintln!("SKIPPED gl_backend_matches_cpu: no GL adapter ({e})");
+            common::say_skipped(&format!("SKIPPED gl_backend_matches_cpu: no GL adapter ({e})"));
             return;
         }
     };

@@ -93,7 +93,7 @@ impl Tmpfs {
             if std::env::var("HITEX_REQUIRE_FAULTS").is_ok_and(|v| v == "1") {
                 panic!("{msg}, and HITEX_REQUIRE_FAULTS=1");
             }
-            eprintln!("{msg}");
+            say_skipped(&msg);
             return None;
         }
         Some(Tmpfs { dir, _parent: None })
@@ -145,4 +145,11 @@ pub fn walk(dir: &Path, out: &mut Vec<String>) {
             }
         }
     }
+}
+
+/// Prints a test's SKIPPED line to the process's standard error itself,
+/// past the test harness's capture, so that a skip is seen in every log.
+pub fn say_skipped(msg: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr(), "{msg}");
 }

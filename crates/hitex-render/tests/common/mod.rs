@@ -33,7 +33,7 @@ pub fn gpu_or_skip(test: &str) -> Option<GpuRenderer> {
             if std::env::var("HITEX_REQUIRE_GPU").is_ok_and(|v| v == "1") {
                 panic!("{test}: HITEX_REQUIRE_GPU=1 but no GPU backend: {e}");
             }
-            eprintln!("SKIPPED {test}: no GPU adapter ({e})");
+            say_skipped(&format!("SKIPPED {test}: no GPU adapter ({e})"));
             None
         }
     }
@@ -79,4 +79,11 @@ pub fn reference(name: &str, frame: &Frame) -> Frame {
         Err(e) => panic!("reference {}: {e} (run with HITEX_BLESS=1 to create it)", path.display()),
     };
     Frame { width: img.width(), height: img.height(), rgba: img.bytes().to_vec() }
+}
+
+/// Prints a test's SKIPPED line to the process's standard error itself,
+/// past the test harness's capture, so that a skip is seen in every log.
+pub fn say_skipped(msg: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr(), "{msg}");
 }
