@@ -236,13 +236,13 @@ fn index_taps(t_in: f32, size: u32) -> Taps {
 // ---- output ----
 
 
-// Twin of hitex_core::texture::ToneMap::apply: 0 none, 1 Reinhard, 2 ACES fit.
+// Twin of hitex_core::texture::ToneMap::apply: TONE_NONE, TONE_REINHARD, TONE_ACES (fit).
 fn tone_map(c: vec3<f32>, mode: u32) -> vec3<f32> {
     let x = clamp(c, vec3<f32>(0.0), vec3<f32>(1.0e4));
-    if mode == 1u {
+    if mode == TONE_REINHARD {
         return x / (vec3<f32>(1.0) + x);
     }
-    if mode == 2u {
+    if mode == TONE_ACES {
         return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), vec3<f32>(0.0), vec3<f32>(1.0));
     }
     return x;

@@ -8,7 +8,7 @@ struct Fly {
     right: vec4<f32>,
     up: vec4<f32>,
     sizes: vec4<u32>,  // width, height, levels, maps per window side
-    params: vec4<u32>, // sampler (0 trilinear, 1 span3, 2 span4, 3 bicubic), generic layer, its levels, its side
+    params: vec4<u32>, // sampler (SAMPLER_*), generic layer, its levels, its side
 }
 
 struct Pages {
@@ -16,9 +16,9 @@ struct Pages {
     slots: array<vec2<i32>>,        // per level and slot: (layer, level of the serving map); layer < 0: no data
 }
 
-// the sampler, fixed per pipeline (0 trilinear, 1 span3, 2 span4, 3 bicubic):
+// the sampler, fixed per pipeline (a SAMPLER_* code):
 // each pipeline compiles only its own path (params.x carries the same code)
-override SAMPLER: u32 = 0u;
+override SAMPLER: u32 = SAMPLER_TRILINEAR;
 
 @group(0) @binding(0) var<uniform> fly: Fly;
 @group(0) @binding(1) var<storage, read> pages: Pages;
@@ -215,10 +215,10 @@ fn span_level(s: Span, me: u32, k_in: i32, b: i32, bicubic: bool) -> vec4<f32> {
 fn span_sample(s: Span, me: u32) -> vec4<f32> {
     let sampler = SAMPLER;
     var b = 4;
-    if (sampler == 1u) {
+    if (sampler == SAMPLER_SPAN3) {
         b = 3;
     }
-    let bicubic = sampler == 3u;
+    let bicubic = sampler == SAMPLER_BICUBIC;
     var lo = vec2<f32>(1e30);
     var hi = vec2<f32>(-1e30);
     for (var i = 0u; i < 4u; i++) {
@@ -271,7 +271,7 @@ fn sky(y: f32) -> vec3<f32> {
 fn fs_main(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let x = frag.x;
     let y = frag.y;
-    if (SAMPLER != 0u) {
+    if (SAMPLER != SAMPLER_TRILINEAR) {
         // the span this pixel belongs to: its four ground points, the same on every lane
         let x0 = floor(x * 0.5) * 2.0 + 0.5;
         let y0 = floor(y * 0.5) * 2.0 + 0.5;
@@ -335,7 +335,7 @@ fn fs_mesh(in: MeshOut) -> @location(0) vec4<f32> {
         let c = generic(p, foot);
         return encode(c.rgb * in.shade);
     }
-    if (SAMPLER == 0u) {
+    if (SAMPLER == SAMPLER_TRILINEAR) {
         let s = trilinear(p, foot);
         return encode(s.rgb + GROUND * (1.0 - s.a));
     }

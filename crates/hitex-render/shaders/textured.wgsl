@@ -22,9 +22,9 @@ struct Material {
     specular: f32,
     shininess: f32,
     has_texture: u32,
-    filter_mode: u32, // 0 nearest, 1 bilinear, 2 trilinear
-    wrap: u32,       // 0 repeat, 1 clamp, 2 mirror
-    level_rule: u32, // 0 max-partial (paper eq. 2), 1 vulkan-rho
+    filter_mode: u32, // FILTER_*
+    wrap: u32,       // WRAP_*
+    level_rule: u32, // LEVEL_RULE_* (max-partial: paper eq. 2)
     lod_bias: f32,
     level_count: u32,
     size: vec2<u32>,
@@ -75,10 +75,10 @@ fn rem_euclid(a: i32, n: i32) -> i32 {
 }
 
 fn wrap_index(i: i32, n: i32, wrap: u32) -> i32 {
-    if wrap == 1u {
+    if wrap == WRAP_CLAMP {
         return clamp(i, 0, n - 1);
     }
-    if wrap == 2u {
+    if wrap == WRAP_MIRROR {
         let m = rem_euclid(i, 2 * n);
         return select(m, 2 * n - 1 - m, m >= n);
     }
@@ -86,10 +86,10 @@ fn wrap_index(i: i32, n: i32, wrap: u32) -> i32 {
 }
 
 fn reduce(t: f32, wrap: u32) -> f32 {
-    if wrap == 0u {
+    if wrap == WRAP_REPEAT {
         return t - floor(t);
     }
-    if wrap == 2u {
+    if wrap == WRAP_MIRROR {
         return t - 2.0 * floor(t * 0.5);
     }
     return clamp(t, -1.0, 2.0);
@@ -104,7 +104,7 @@ fn level_of_detail(rule: u32, jac: vec4<f32>, size: vec2<u32>) -> f32 {
     let vy = jac.w * s.y;
     // level of detail
     var rho: f32;
-    if rule == 1u {
+    if rule == LEVEL_RULE_VULKAN_RHO {
         rho = max(sqrt(ux * ux + vx * vx), sqrt(uy * uy + vy * vy));
     } else {
         rho = max(max(abs(ux), abs(vx)), max(abs(uy), abs(vy)));
@@ -164,10 +164,10 @@ fn bilinear(level: i32, wrap: u32, uv: vec2<f32>) -> vec4<f32> {
 
 fn sample(uv_in: vec2<f32>, jac: vec4<f32>) -> vec4<f32> {
     let uv = vec2<f32>(reduce(uv_in.x, material.wrap), reduce(uv_in.y, material.wrap));
-    if material.filter_mode == 0u {
+    if material.filter_mode == FILTER_NEAREST {
         return nearest(material.wrap, uv);
     }
-    if material.filter_mode == 1u {
+    if material.filter_mode == FILTER_BILINEAR {
         return bilinear(0, material.wrap, uv);
     }
     // level selection
@@ -224,17 +224,17 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         n = -n;
     }
     let mode = frame.params.x;
-    if mode == 1u {
+    if mode == RENDER_UV {
         return vec4<f32>(uv.x - floor(uv.x), uv.y - floor(uv.y), 0.0, 1.0);
     }
-    if mode == 2u {
+    if mode == RENDER_LEVEL {
         var lambda = NO_LEVEL;
         if material.has_texture == 1u {
             lambda = level_of_detail(material.level_rule, jac, material.size) + material.lod_bias;
         }
         return vec4<f32>(level_color(lambda), 1.0);
     }
-    if mode == 3u {
+    if mode == RENDER_NORMAL {
         return vec4<f32>(n * 0.5 + vec3<f32>(0.5), 1.0);
     }
     // shaded

@@ -9,7 +9,9 @@
 //!   surfaces ([`btf`]), flights over tile stores ([`terrain`], with the
 //!   per-frame work above the renderer in [`terrain::flight`]).
 //! * [`compare`]: image metrics between frames; [`legend`]: colour legends
-//!   drawn into analysis frames.
+//!   drawn into analysis frames; [`codes`]: the codes of the uniforms'
+//!   choices (filter, wrap, modes, tone map, sampler), which the shaders
+//!   receive as generated constants.
 //!
 //! Both consume the same [`prepare::PreparedScene`]: world-space vertices,
 //! `#[repr(C)]` uniform blocks and the texture pyramids, byte for byte.
@@ -18,6 +20,7 @@
 #![warn(missing_docs, unreachable_pub)]
 
 pub mod btf;
+pub mod codes;
 pub mod compare;
 pub mod cpu;
 pub mod gpu;

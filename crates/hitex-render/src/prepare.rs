@@ -3,7 +3,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat3, Vec3, Vec4};
 use hitex_core::scene::{Camera, Light, MAX_LIGHTS, RenderMode, Scene};
-use hitex_core::texture::{Filter, LevelRule, MipPyramid, Wrap};
+use hitex_core::texture::MipPyramid;
 use std::sync::Arc;
 
 /// One vertex in world space (binding 0 of `textured.wgsl`'s vertex stage).
@@ -60,11 +60,11 @@ pub struct MaterialUniform {
     pub shininess: f32,
     /// 1 if a texture is bound, else 0 (a 1×1 white texture is bound instead).
     pub has_texture: u32,
-    /// 0 nearest, 1 bilinear, 2 trilinear.
+    /// [`hitex_core::texture::Filter::code`].
     pub filter: u32,
-    /// 0 repeat, 1 clamp, 2 mirror.
+    /// [`hitex_core::texture::Wrap::code`].
     pub wrap: u32,
-    /// 0 max-partial, 1 vulkan-rho.
+    /// [`hitex_core::texture::LevelRule::code`].
     pub level_rule: u32,
     /// Added to λ.
     pub lod_bias: f32,
@@ -232,20 +232,9 @@ impl PreparedScene {
                 specular: m.specular,
                 shininess: m.shininess,
                 has_texture: tex.is_some() as u32,
-                filter: match m.sampler.filter {
-                    Filter::Nearest => 0,
-                    Filter::Bilinear => 1,
-                    Filter::Trilinear => 2,
-                },
-                wrap: match m.sampler.wrap {
-                    Wrap::Repeat => 0,
-                    Wrap::Clamp => 1,
-                    Wrap::Mirror => 2,
-                },
-                level_rule: match m.sampler.level_rule {
-                    LevelRule::MaxPartial => 0,
-                    LevelRule::VulkanRho => 1,
-                },
+                filter: m.sampler.filter.code(),
+                wrap: m.sampler.wrap.code(),
+                level_rule: m.sampler.level_rule.code(),
                 lod_bias: m.sampler.lod_bias,
                 level_count: level_count.min(MAX_ATLAS_LEVELS as u32),
                 size,

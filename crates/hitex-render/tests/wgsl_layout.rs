@@ -6,7 +6,7 @@
 
 use hitex_core::btf::Layout;
 use hitex_render::btf::BtfFrame;
-use hitex_render::gpu::{TERRAIN_WGSL, TEXTURED_WGSL, layout_source, nurbs_source};
+use hitex_render::gpu::{layout_source, nurbs_source, terrain_source, textured_source};
 use hitex_render::nurbs::NurbsFrame;
 use hitex_render::prepare::{FrameUniform, LightUniform, MaterialUniform};
 use hitex_render::terrain::FlyUniform;
@@ -46,13 +46,13 @@ fn check(source: &str, name: &str, rust_size: usize, rust: &[(&str, usize)]) {
 #[test]
 fn textured_uniforms_match_the_shader() {
     check(
-        TEXTURED_WGSL,
+        &textured_source(),
         "Light",
         size_of::<LightUniform>(),
         &[("vector", offset_of!(LightUniform, vector)), ("radiance", offset_of!(LightUniform, radiance))],
     );
     check(
-        TEXTURED_WGSL,
+        &textured_source(),
         "Frame",
         size_of::<FrameUniform>(),
         &[
@@ -65,7 +65,7 @@ fn textured_uniforms_match_the_shader() {
         ],
     );
     check(
-        TEXTURED_WGSL,
+        &textured_source(),
         "Material",
         size_of::<MaterialUniform>(),
         &[
@@ -135,7 +135,7 @@ fn btf_uniform_matches_the_shader_in_every_layout() {
 #[test]
 fn flight_uniform_matches_the_shader() {
     check(
-        TERRAIN_WGSL,
+        &terrain_source(),
         "Fly",
         size_of::<FlyUniform>(),
         &[
@@ -172,9 +172,9 @@ fn shared_helpers_live_in_one_file() {
     assert!(common.contains("fn linear_to_srgb"));
     // every composed source has it once, and parses
     for (name, src) in [
-        ("textured", TEXTURED_WGSL.to_string()),
+        ("textured", textured_source()),
         ("nurbs", nurbs_source()),
-        ("terrain", TERRAIN_WGSL.to_string()),
+        ("terrain", terrain_source()),
         ("btf (f)", layout_source(Layout::F)),
     ] {
         assert_eq!(src.matches("fn linear_to_srgb").count(), 1, "{name}");
@@ -213,9 +213,9 @@ fn nurbs_modes_are_named_alike_in_both_programs() {
 #[test]
 fn every_composed_shader_validates() {
     let mut sources = vec![
-        ("textured".to_string(), TEXTURED_WGSL.to_string()),
+        ("textured".to_string(), textured_source()),
         ("nurbs".to_string(), nurbs_source()),
-        ("terrain".to_string(), TERRAIN_WGSL.to_string()),
+        ("terrain".to_string(), terrain_source()),
     ];
     for layout in Layout::ALL {
         sources.push((format!("btf {layout:?}"), layout_source(layout)));
@@ -226,5 +226,51 @@ fn every_composed_shader_validates() {
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
             .validate(&module)
             .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
+    }
+}
+
+/// The codes of filter, wrap, level rule, display mode, tone map and flight
+/// sampler: every composed shader holds each as the constant the Rust table
+/// gives, and compares them by name only.
+#[test]
+fn codes_are_named_alike_in_both_programs() {
+    use hitex_render::codes::table;
+    let mut sources = vec![
+        ("textured".to_string(), textured_source()),
+        ("nurbs".to_string(), nurbs_source()),
+        ("terrain".to_string(), terrain_source()),
+    ];
+    for layout in Layout::ALL {
+        sources.push((format!("btf {layout:?}"), layout_source(layout)));
+    }
+    for (name, src) in &sources {
+        let module = naga::front::wgsl::parse_str(src).unwrap();
+        for (choice, value, code) in table() {
+            let constant = format!("{choice}_{}", value.to_ascii_uppercase().replace('-', "_"));
+            let c = module
+                .constants
+                .iter()
+                .find(|(_, c)| c.name.as_deref() == Some(constant.as_str()))
+                .unwrap_or_else(|| panic!("{name}: {constant} missing"))
+                .1;
+            match module.global_expressions[c.init] {
+                naga::Expression::Literal(naga::Literal::U32(v)) => assert_eq!(v, code, "{name}: {constant}"),
+                ref e => panic!("{name}: {constant} = {e:?}"),
+            }
+        }
+    }
+    // codes compared as numbers: none left in the shaders
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+    for (f, words) in [
+        ("textured.wgsl", &["wrap ==", "rule ==", "filter_mode ==", "mode =="][..]),
+        ("btf.wgsl", &["mode =="][..]),
+        ("terrain.wgsl", &["sampler ==", "SAMPLER ==", "SAMPLER !="][..]),
+    ] {
+        let s = std::fs::read_to_string(dir.join(f)).unwrap();
+        for w in words {
+            for k in 0..=9 {
+                assert!(!s.contains(&format!("{w} {k}u")), "{f} compares `{w} {k}u`");
+            }
+        }
     }
 }

@@ -51,6 +51,57 @@ pub enum LevelRule {
     VulkanRho,
 }
 
+/// The code of `v` in a choice's table: its position, the number both
+/// backends' programs receive in their uniforms.
+fn code_in<T: PartialEq>(all: &[(&str, T)], v: T) -> u32 {
+    all.iter().position(|(_, x)| *x == v).unwrap_or(0) as u32
+}
+
+impl Filter {
+    /// Every filter with its name; the position is the code the fragment
+    /// programs receive ([`Filter::code`], WGSL `FILTER_<NAME>`).
+    pub const ALL: [(&'static str, Filter); 3] =
+        [("nearest", Filter::Nearest), ("bilinear", Filter::Bilinear), ("trilinear", Filter::Trilinear)];
+    /// The code the fragment programs receive.
+    pub fn code(self) -> u32 {
+        code_in(&Self::ALL, self)
+    }
+    /// The filter of a code.
+    pub fn from_code(code: u32) -> Option<Self> {
+        Self::ALL.get(code as usize).map(|(_, f)| *f)
+    }
+}
+
+impl Wrap {
+    /// Every wrap mode with its name; the position is the code the fragment
+    /// programs receive ([`Wrap::code`], WGSL `WRAP_<NAME>`).
+    pub const ALL: [(&'static str, Wrap); 3] =
+        [("repeat", Wrap::Repeat), ("clamp", Wrap::Clamp), ("mirror", Wrap::Mirror)];
+    /// The code the fragment programs receive.
+    pub fn code(self) -> u32 {
+        code_in(&Self::ALL, self)
+    }
+    /// The wrap mode of a code.
+    pub fn from_code(code: u32) -> Option<Self> {
+        Self::ALL.get(code as usize).map(|(_, w)| *w)
+    }
+}
+
+impl LevelRule {
+    /// Every level rule with its name; the position is the code the
+    /// fragment programs receive ([`LevelRule::code`], WGSL `LEVEL_RULE_<NAME>`).
+    pub const ALL: [(&'static str, LevelRule); 2] =
+        [("max-partial", LevelRule::MaxPartial), ("vulkan-rho", LevelRule::VulkanRho)];
+    /// The code the fragment programs receive.
+    pub fn code(self) -> u32 {
+        code_in(&Self::ALL, self)
+    }
+    /// The level rule of a code.
+    pub fn from_code(code: u32) -> Option<Self> {
+        Self::ALL.get(code as usize).map(|(_, r)| *r)
+    }
+}
+
 /// Sampler options: a small value passed to one entry point ([`sample`]).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct SamplerOptions {
@@ -240,6 +291,23 @@ pub fn bilinear(pyr: &MipPyramid, level: usize, wrap: Wrap, uv: Vec2) -> Vec4 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every value's code leads back to it, and the programs' defaults for
+    /// a material are the codes the enums' defaults have.
+    #[test]
+    fn codes_lead_back_to_their_values() {
+        for (_, f) in Filter::ALL {
+            assert_eq!(Filter::from_code(f.code()), Some(f));
+        }
+        for (_, w) in Wrap::ALL {
+            assert_eq!(Wrap::from_code(w.code()), Some(w));
+        }
+        for (_, r) in LevelRule::ALL {
+            assert_eq!(LevelRule::from_code(r.code()), Some(r));
+        }
+        assert_eq!((Filter::Nearest.code(), Filter::Trilinear.code(), Wrap::Mirror.code()), (0, 2, 2));
+        assert_eq!((LevelRule::VulkanRho.code(), Filter::from_code(3), Wrap::from_code(3)), (1, None, None));
+    }
     use crate::assert_near;
     use crate::texture::image::{ColorSpace, Image};
     use proptest::prelude::*;

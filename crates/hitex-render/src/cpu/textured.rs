@@ -47,17 +47,9 @@ impl<'a> TexturedProgram<'a> {
 /// The sampler options a material uniform encodes.
 pub fn sampler_options(m: &MaterialUniform) -> SamplerOptions {
     SamplerOptions {
-        filter: match m.filter {
-            0 => Filter::Nearest,
-            1 => Filter::Bilinear,
-            _ => Filter::Trilinear,
-        },
-        wrap: match m.wrap {
-            1 => Wrap::Clamp,
-            2 => Wrap::Mirror,
-            _ => Wrap::Repeat,
-        },
-        level_rule: if m.level_rule == 1 { LevelRule::VulkanRho } else { LevelRule::MaxPartial },
+        filter: Filter::from_code(m.filter).unwrap_or(Filter::Trilinear),
+        wrap: Wrap::from_code(m.wrap).unwrap_or(Wrap::Repeat),
+        level_rule: LevelRule::from_code(m.level_rule).unwrap_or(LevelRule::MaxPartial),
         lod_bias: m.lod_bias,
     }
 }

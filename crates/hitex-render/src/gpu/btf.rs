@@ -15,11 +15,13 @@ use wgpu::util::DeviceExt;
 /// The BTF shader source, before the layout's constants are prepended.
 pub const BTF_WGSL: &str = concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/btf.wgsl"));
 
-/// The WGSL of `layout`: its constants prepended, the 2-D or 3-D branch kept.
+/// The WGSL of `layout`: the codes' constants ([`crate::codes::wgsl_constants`])
+/// and the layout's prepended, the 2-D or 3-D branch kept.
 pub fn layout_source(layout: Layout) -> String {
     let spec = layout.spec();
     let d3 = spec.depth.is_some();
-    let mut out = format!(
+    let mut out = crate::codes::wgsl_constants();
+    out += &format!(
         "const FILTERED: u32 = {}u;\nconst TILE_X: u32 = {}u;\nconst TILE_Y: u32 = {}u;\nconst DEPTH_AXIS: u32 = {}u;\n",
         layout.filtered_mask(),
         spec.tile_x as u32,

@@ -10,7 +10,7 @@ mod terrain;
 /// The shaders' sources (a BTF layout's: [`layout_source`]).
 pub use btf::{BTF_WGSL, bc1_3d_trusted, layout_source};
 pub use nurbs::{NURBS_WGSL, nurbs_source};
-pub use terrain::TERRAIN_WGSL;
+pub use terrain::{TERRAIN_WGSL, terrain_source};
 
 pub use device::{GpuContext, adapters_report};
 
@@ -121,9 +121,16 @@ pub(crate) unsafe fn trusted_module(device: &wgpu::Device, label: &str, source: 
     }
 }
 
-/// The textured-mesh shader source.
+/// The textured-mesh shader source, before the codes' constants are
+/// prepended ([`textured_source`]).
 pub const TEXTURED_WGSL: &str =
     concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/textured.wgsl"));
+
+/// The textured-mesh shader as compiled: the codes' constants
+/// ([`crate::codes::wgsl_constants`]) before [`TEXTURED_WGSL`].
+pub fn textured_source() -> String {
+    format!("{}{TEXTURED_WGSL}", crate::codes::wgsl_constants())
+}
 
 /// A textured scene on the device: its mesh and one bind group per material.
 struct UploadedScene {
@@ -190,7 +197,7 @@ impl GpuRenderer {
         // λ to [0, level_count − 1], and the light loop stops at min(count, 8);
         // naga's injected checks would cost time on every texel load.
         // SAFETY: the shader indexes only in-range texels, levels and array elements.
-        let module = unsafe { trusted_module(device, "textured.wgsl", TEXTURED_WGSL) };
+        let module = unsafe { trusted_module(device, "textured.wgsl", &textured_source()) };
         let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("frame"),
             entries: &[uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT)],

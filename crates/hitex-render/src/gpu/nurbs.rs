@@ -11,10 +11,11 @@ use hitex_core::scene::Camera;
 pub const NURBS_WGSL: &str =
     concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/nurbs.wgsl"));
 
-/// The NURBS shader as compiled: the display modes' `MODE_*` constants
-/// (generated from [`crate::nurbs::mode_index`]) before [`NURBS_WGSL`].
+/// The NURBS shader as compiled: the codes' constants
+/// ([`crate::codes::wgsl_constants`]) and the display modes' `MODE_*`
+/// constants (generated from [`crate::nurbs::mode_index`]) before [`NURBS_WGSL`].
 pub fn nurbs_source() -> String {
-    format!("{}{NURBS_WGSL}", crate::nurbs::wgsl_mode_constants())
+    format!("{}{}{NURBS_WGSL}", crate::codes::wgsl_constants(), crate::nurbs::wgsl_mode_constants())
 }
 
 pub(crate) struct NurbsGpu {

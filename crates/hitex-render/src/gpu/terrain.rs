@@ -13,9 +13,16 @@ use hitex_core::residency::MapKey;
 use std::collections::HashMap;
 use std::sync::Arc;
 
-/// The flight shader source.
+/// The flight shader source, before the codes' constants are prepended
+/// ([`terrain_source`]).
 pub const TERRAIN_WGSL: &str =
     concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/terrain.wgsl"));
+
+/// The flight shader as compiled: the codes' constants
+/// ([`crate::codes::wgsl_constants`]) before [`TERRAIN_WGSL`].
+pub fn terrain_source() -> String {
+    format!("{}{TERRAIN_WGSL}", crate::codes::wgsl_constants())
+}
 
 /// Levels the page table holds (the shader's `origins` array).
 const MAX_LEVELS: u32 = 32;
@@ -46,7 +53,7 @@ impl FlyGpu {
         // before upload), `slots` with slot indices inside the window of each
         // level (the table holds levels × per_side² entries), and reads layers
         // the table names, all below the array's layer count.
-        let module = unsafe { trusted_module(device, "terrain.wgsl", TERRAIN_WGSL) };
+        let module = unsafe { trusted_module(device, "terrain.wgsl", &terrain_source()) };
         let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
