@@ -395,7 +395,10 @@ pub fn light_for(surface: &BtfSurface, quad: bool, azimuth: f32, elevation: f32)
 }
 
 fn parse_layout(s: &str) -> Result<Layout, CliError> {
-    Layout::parse(s).ok_or_else(|| CliError::Input(format!("unknown layout '{s}': use a, b, c, c2, d, e, e2 or f")))
+    Layout::parse(s).ok_or_else(|| {
+        let names: Vec<&str> = Layout::ALL.iter().map(|l| l.name()).collect();
+        CliError::Input(format!("unknown layout '{s}': use one of {}", names.join(", ")))
+    })
 }
 
 /// A square side: `N`, or `NxN` as the renders' `--size WxH` (sides must match).

@@ -208,10 +208,8 @@ fn nurbs_modes_are_named_alike_in_both_programs() {
     }
 }
 
-/// Every composed shader passes naga's validator (types, builtins, uniformity), so a
-/// shader error shows here with its line rather than as an invalid pipeline at draw time.
-#[test]
-fn every_composed_shader_validates() {
+/// Every shader as compiled: (name, source), the BTF one per layout.
+fn composed_sources() -> Vec<(String, String)> {
     let mut sources = vec![
         ("textured".to_string(), textured_source()),
         ("nurbs".to_string(), nurbs_source()),
@@ -220,7 +218,14 @@ fn every_composed_shader_validates() {
     for layout in Layout::ALL {
         sources.push((format!("btf {layout:?}"), layout_source(layout)));
     }
-    for (name, src) in sources {
+    sources
+}
+
+/// Every composed shader passes naga's validator (types, builtins, uniformity), so a
+/// shader error shows here with its line rather than as an invalid pipeline at draw time.
+#[test]
+fn every_composed_shader_validates() {
+    for (name, src) in composed_sources() {
         let module =
             naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
@@ -235,15 +240,7 @@ fn every_composed_shader_validates() {
 #[test]
 fn codes_are_named_alike_in_both_programs() {
     use hitex_render::codes::table;
-    let mut sources = vec![
-        ("textured".to_string(), textured_source()),
-        ("nurbs".to_string(), nurbs_source()),
-        ("terrain".to_string(), terrain_source()),
-    ];
-    for layout in Layout::ALL {
-        sources.push((format!("btf {layout:?}"), layout_source(layout)));
-    }
-    for (name, src) in &sources {
+    for (name, src) in &composed_sources() {
         let module = naga::front::wgsl::parse_str(src).unwrap();
         for (choice, value, code) in table() {
             let constant = format!("{choice}_{}", value.to_ascii_uppercase().replace('-', "_"));

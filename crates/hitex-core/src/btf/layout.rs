@@ -110,47 +110,37 @@ impl Layout {
     pub const ALL: [Layout; 8] =
         [Layout::A, Layout::B, Layout::C, Layout::C2, Layout::D, Layout::E, Layout::E2, Layout::F];
 
+    /// Every layout with its short name and the paper's label, the one
+    /// table [`Layout::name`], [`Layout::label`] and [`Layout::parse`] read.
+    const NAMES: [(Layout, &'static str, &'static str); 8] = [
+        (Layout::A, "a", "(a)"),
+        (Layout::B, "b", "(b)"),
+        (Layout::C, "c", "(c)"),
+        (Layout::C2, "c2", "(c′)"),
+        (Layout::D, "d", "(d)"),
+        (Layout::E, "e", "(e)"),
+        (Layout::E2, "e2", "(e′)"),
+        (Layout::F, "f", "(f)"),
+    ];
+
     /// Short name: "a", "b", "c", "c2", "d", "e", "e2", "f".
     pub fn name(self) -> &'static str {
-        match self {
-            Layout::A => "a",
-            Layout::B => "b",
-            Layout::C => "c",
-            Layout::C2 => "c2",
-            Layout::D => "d",
-            Layout::E => "e",
-            Layout::E2 => "e2",
-            Layout::F => "f",
-        }
+        Self::NAMES.iter().find(|n| n.0 == self).map_or("a", |n| n.1)
     }
 
     /// The paper's label: "(a)" … "(c′)" … "(f)".
     pub fn label(self) -> &'static str {
-        match self {
-            Layout::A => "(a)",
-            Layout::B => "(b)",
-            Layout::C => "(c)",
-            Layout::C2 => "(c′)",
-            Layout::D => "(d)",
-            Layout::E => "(e)",
-            Layout::E2 => "(e′)",
-            Layout::F => "(f)",
-        }
+        Self::NAMES.iter().find(|n| n.0 == self).map_or("(a)", |n| n.2)
     }
 
-    /// Parses a short name (also "c'" and "e'").
+    /// Parses a short name, or the label with or without its parentheses
+    /// ("c′", also typed "c'").
     pub fn parse(s: &str) -> Option<Layout> {
-        Some(match s.trim().to_ascii_lowercase().as_str() {
-            "a" => Layout::A,
-            "b" => Layout::B,
-            "c" => Layout::C,
-            "c2" | "c'" | "c′" => Layout::C2,
-            "d" => Layout::D,
-            "e" => Layout::E,
-            "e2" | "e'" | "e′" => Layout::E2,
-            "f" => Layout::F,
-            _ => return None,
-        })
+        let s = s.trim().to_ascii_lowercase().replace('\'', "′");
+        Self::NAMES
+            .iter()
+            .find(|(_, name, label)| s == *name || s == *label || s == label[1..label.len() - 1])
+            .map(|n| n.0)
     }
 
     /// Where each axis goes.
@@ -854,8 +844,14 @@ mod tests {
     fn names_parse() {
         for l in Layout::ALL {
             assert_eq!(Layout::parse(l.name()), Some(l));
+            assert_eq!(Layout::parse(l.label()), Some(l));
         }
+        let names: Vec<&str> = Layout::ALL.iter().map(|l| l.name()).collect();
+        assert_eq!(names, ["a", "b", "c", "c2", "d", "e", "e2", "f"]);
+        assert_eq!((Layout::C2.label(), Layout::E2.label(), Layout::F.label()), ("(c′)", "(e′)", "(f)"));
         assert_eq!(Layout::parse("c'"), Some(Layout::C2));
+        assert_eq!(Layout::parse(" E′ "), Some(Layout::E2));
         assert_eq!(Layout::parse("g"), None);
+        assert_eq!(Layout::parse("()"), None);
     }
 }

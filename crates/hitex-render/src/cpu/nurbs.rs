@@ -791,40 +791,13 @@ impl NurbsProgram<'_> {
             }
             let pr = patch_ref(t, patch);
             let (ku, kv, cp, nu) = (pr.ku, pr.kv, pr.cp, pr.nu);
+            // the first group's lanes straight into the output, the others' copied over
+            let out = if filled { &mut g } else { &mut o };
+            simd::run(BicubicOp { su, sv, lanes, u: &u, v: &v, ku, kv, cp, nu, cam, light, m: &f.view_proj, out });
             if !filled {
-                simd::run(BicubicOp {
-                    su,
-                    sv,
-                    lanes,
-                    u: &u,
-                    v: &v,
-                    ku,
-                    kv,
-                    cp,
-                    nu,
-                    cam,
-                    light,
-                    m: &f.view_proj,
-                    out: &mut o,
-                });
                 filled = true;
                 continue;
             }
-            simd::run(BicubicOp {
-                su,
-                sv,
-                lanes,
-                u: &u,
-                v: &v,
-                ku,
-                kv,
-                cp,
-                nu,
-                cam,
-                light,
-                m: &f.view_proj,
-                out: &mut g,
-            });
             let mut m = lanes;
             while m != 0 {
                 let lane = m.trailing_zeros() as usize;
