@@ -407,7 +407,7 @@ fn mul_cols(a: &[f64], m: usize, q: &[Vec<f64>]) -> Vec<Vec<f64>> {
 }
 
 /// Modified Gram–Schmidt (twice) on the columns; degenerate columns become zero.
-fn orthonormalise(q: &mut [Vec<f64>]) {
+pub(crate) fn orthonormalise(q: &mut [Vec<f64>]) {
     for c in 0..q.len() {
         let (done, rest) = q.split_at_mut(c);
         let Some(v) = rest.first_mut() else { return };
@@ -432,7 +432,7 @@ fn orthonormalise(q: &mut [Vec<f64>]) {
 
 /// Eigen-decomposition of a symmetric `n`×`n` matrix by cyclic Jacobi
 /// rotations: eigenvalues and the eigenvector matrix (column k = vector k).
-fn jacobi(mut a: Vec<f64>, n: usize) -> (Vec<f64>, Vec<f64>) {
+pub(crate) fn jacobi(mut a: Vec<f64>, n: usize) -> (Vec<f64>, Vec<f64>) {
     let mut v = vec![0f64; n * n];
     for i in 0..n {
         v[i * n + i] = 1.0;

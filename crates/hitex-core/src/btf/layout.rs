@@ -33,7 +33,7 @@
 //! paper's condition for tiling without compression artefacts at the seams).
 
 use super::dataset::Btf;
-use super::grid::AxisLerp;
+use super::grid::{AngularGrid, AxisLerp};
 use crate::CoreError;
 use crate::texture::ColorSpace;
 use crate::texture::image::decode_table;
@@ -345,13 +345,20 @@ impl LinearTexel for u64 {
     }
 }
 
-/// A texel of [`Codebook::half`]: four linear half floats. A non-negative
-/// finite half's bits moved up by 13 are an f32 of its value × 2⁻¹¹²
-/// (subnormal halves included), so decoding is a shift, and the unit is
-/// 2¹¹².
+/// A texel of [`Codebook::half`]: four linear half floats. A finite half's
+/// magnitude bits moved up by 13 are an f32 of its magnitude × 2⁻¹¹²
+/// (subnormal halves included) and its sign bit moved up by 16 is the f32's,
+/// so decoding is two shifts, and the unit is 2¹¹².
 #[repr(transparent)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Half4(pub u64);
+
+/// The bits of the f32 of a finite half's value × 2⁻¹¹² (see [`Half4`]).
+#[inline(always)]
+pub fn half_to_scaled_f32_bits(h: u16) -> u32 {
+    let h = h as u32;
+    (h & 0x8000) << 16 | (h & 0x7fff) << 13
+}
 
 /// 2¹¹², the unit of [`Half4`] values.
 pub const HALF_UNIT: f32 = f32::from_bits((127 + 112) << 23);
@@ -360,7 +367,7 @@ impl LinearTexel for Half4 {
     const UNIT: f32 = HALF_UNIT;
     #[inline(always)]
     fn value(self) -> Vec4 {
-        let c = |s: u32| f32::from_bits((((self.0 >> s) & 0x7fff) as u32) << 13);
+        let c = |s: u32| f32::from_bits(half_to_scaled_f32_bits((self.0 >> s) as u16));
         Vec4::new(c(0), c(16), c(32), c(48))
     }
 }
@@ -376,11 +383,56 @@ impl Codebook {
     /// Lays `btf` out as `layout`. Fails when the texture would exceed the
     /// side limits (a grid or sample too large for one texture).
     pub fn build(btf: &Btf, layout: Layout) -> Result<Self, CoreError> {
+        let hdr = btf.is_hdr();
+        Self::build_from(btf.grid(), btf.width(), btf.height(), layout, hdr, &|view, light, x, y| {
+            (btf.texel(view, light, x, y), btf.texel_half(view, light, x, y).unwrap_or([0; 3]))
+        })
+    }
+
+    /// Lays out a signed half-float BTF (a local-PCA basis,
+    /// [`super::pca::LocalPca::basis_halves`]: three halves per texel,
+    /// image-major, `width`×`height` texels per image) as `layout`, as
+    /// [`Codebook::build`] lays out an HDR BTF. The 8-bit texels hold the
+    /// values clamped to [0, 1], sRGB-encoded (a display copy).
+    pub fn build_signed(
+        grid: &AngularGrid,
+        width: u32,
+        height: u32,
+        halves: &[u16],
+        layout: Layout,
+    ) -> Result<Self, CoreError> {
+        let d = grid.directions();
+        let per = width as usize * height as usize * 3;
+        if halves.len() != d * d * per {
+            return Err(CoreError::InvalidImage(format!(
+                "signed BTF of {} halves; {width}x{height} texels × {d}² directions need {}",
+                halves.len(),
+                d * d * per
+            )));
+        }
+        Self::build_from(grid, width, height, layout, true, &|view, light, x, y| {
+            let o = (view * d + light) * per + (y * width + x) as usize * 3;
+            let h = [halves[o], halves[o + 1], halves[o + 2]];
+            let e = |h: u16| crate::texture::linear_to_srgb_u8(super::dataset::half_value(h).clamp(0.0, 1.0));
+            ([e(h[0]), e(h[1]), e(h[2])], h)
+        })
+    }
+
+    /// The layout walk of [`Codebook::build`] over a texel source: per
+    /// (view, light, x, y) its 8-bit sRGB texel and, when `hdr`, its halves.
+    #[allow(clippy::type_complexity)]
+    fn build_from(
+        g: &AngularGrid,
+        sample_w: u32,
+        sample_h: u32,
+        layout: Layout,
+        hdr: bool,
+        source: &(dyn Fn(usize, usize, u32, u32) -> ([u8; 3], [u16; 3]) + Sync),
+    ) -> Result<Self, CoreError> {
         let spec = layout.spec();
-        let g = btf.grid();
         let lens = [
-            btf.width(),
-            btf.height(),
+            sample_w,
+            sample_h,
             g.theta_count() as u32,
             g.phi_count() as u32,
             g.theta_count() as u32,
@@ -427,7 +479,6 @@ impl Codebook {
         let row_bytes = width as usize * 4;
         let mut texels = vec![0u8; row_bytes * height as usize * depth as usize];
         // an HDR BTF also gets its half floats, from the same walk: each texel names its source
-        let hdr = btf.is_hdr();
         let mut half = vec![0u64; if hdr { texels.len() / 4 } else { 0 }];
         let half_rows: Vec<&mut [u64]> = if hdr { half.chunks_mut(width as usize).collect() } else { Vec::new() };
         let mut half_rows: Vec<Option<&mut [u64]>> = half_rows.into_iter().map(Some).collect();
@@ -443,10 +494,10 @@ impl Codebook {
                 let idx = cb.source_of(&spec, k, x % tile_w, iy, z);
                 let view = g.direction(idx[2] as usize, idx[3] as usize);
                 let light = g.direction(idx[4] as usize, idx[5] as usize);
-                let t = btf.texel(view, light, idx[0], idx[1]);
+                let (t, th) = source(view, light, idx[0], idx[1]);
                 row[x as usize * 4..x as usize * 4 + 4].copy_from_slice(&[t[0], t[1], t[2], 255]);
-                if let (Some(h), Some(t)) = (hrow.as_deref_mut(), btf.texel_half(view, light, idx[0], idx[1])) {
-                    h[x as usize] = t[0] as u64 | (t[1] as u64) << 16 | (t[2] as u64) << 32 | HALF_ONE << 48;
+                if let Some(h) = hrow.as_deref_mut() {
+                    h[x as usize] = th[0] as u64 | (th[1] as u64) << 16 | (th[2] as u64) << 32 | HALF_ONE << 48;
                 }
             }
         });

@@ -95,7 +95,7 @@ const KMEANS_TRAIN_PER_CLUSTER: usize = 8;
 /// iterations; a cluster left empty takes the point farthest from its own.
 /// Beyond 8 points per cluster (at least 4096) the centres are fitted on an
 /// evenly strided subset and every point then joins its nearest centre.
-fn kmeans(points: &[f32], weights: &[f32], dims: usize, k: usize, seed: u64) -> Vec<usize> {
+pub(crate) fn kmeans(points: &[f32], weights: &[f32], dims: usize, k: usize, seed: u64) -> Vec<usize> {
     let n = weights.len();
     let train = (KMEANS_TRAIN_PER_CLUSTER * k).max(4096);
     if n <= train {

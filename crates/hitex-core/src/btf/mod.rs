@@ -8,6 +8,7 @@
 //! * [`synth`]: procedural BTFs rendered from height-field micro-geometry;
 //! * [`index`]: index maps grown from the sample by texture synthesis;
 //! * [`mip`]: MIP pyramids of index maps with per-level codebooks;
+//! * [`pca`]: local PCA compression of the codebook (per-cluster bases);
 //! * [`cache`]: the texture-cache model behind the paper's load efficiency.
 
 pub mod cache;
@@ -17,6 +18,7 @@ pub mod grid;
 pub mod index;
 pub mod layout;
 pub mod mip;
+pub mod pca;
 pub mod synth;
 
 pub use dataset::Btf;
