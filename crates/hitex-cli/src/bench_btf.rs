@@ -63,6 +63,10 @@ pub struct BtfArgs {
     /// `layout-X-r8-mip`.
     #[arg(long)]
     pub mip: bool,
+    /// Also run each layout from a local-PCA codebook of CLUSTERS,COMPONENTS
+    /// (cases `layout-X-pca`), with its ratio and PSNR in the compression table.
+    #[arg(long, value_parser = crate::btf_cmd::parse_pca)]
+    pub pca: Option<hitex_core::btf::pca::PcaOptions>,
     #[command(flatten)]
     pub simd: crate::bench::SimdArg,
 }
@@ -90,6 +94,21 @@ pub struct EncoderRow {
     /// Time, ms.
     pub ms: f64,
     /// PSNR, dB.
+    pub psnr_db: f64,
+}
+
+/// Size and quality of one compressed codebook.
+#[derive(Debug, Clone, Serialize)]
+pub struct CompressionRow {
+    /// Case name (`layout-X-bc1`, `layout-X-pca`).
+    pub case: String,
+    /// Bytes of the compressed codebook without the layouts' padding (BC1:
+    /// 4 bits a texel; PCA: basis and coefficients as half floats, 16-bit
+    /// cluster ids).
+    pub bytes: u64,
+    /// The BTF's RGB8 texels over `bytes`.
+    pub ratio: f64,
+    /// PSNR of the decoded codebook against the raw 8-bit texels, RGB, dB.
     pub psnr_db: f64,
 }
 
@@ -135,6 +154,8 @@ pub struct BtfReport {
     pub encoders: Vec<EncoderRow>,
     /// Cache model per case.
     pub cache_model: Vec<CacheRow>,
+    /// Compression ratio and quality per compressed case.
+    pub compression: Vec<CompressionRow>,
 }
 
 fn paper_snr(l: Layout) -> f64 {
@@ -215,13 +236,27 @@ pub fn btf(args: BtfArgs) -> Result<(), CliError> {
     } else {
         None
     };
+    let mut compression = Vec::new();
+    let rgb8 = btf.texels().len() as u64;
+    let pca = match args.pca {
+        Some(opts) => {
+            variants.extend(layouts.iter().map(|&l| (l, false, 3)));
+            let (p, psnr) = crate::btf_cmd::pca_with_progress(&btf, opts, quiet)?;
+            let bytes = p.bytes();
+            let name = format!("pca-{}x{}", opts.clusters, opts.components);
+            compression.push(CompressionRow { case: name, bytes, ratio: rgb8 as f64 / bytes as f64, psnr_db: psnr });
+            Some(p)
+        }
+        None => None,
+    };
     for &(layout, compressed, minified) in &variants {
-        let name = case_name(layout, compressed) + ["", "-r8", "-r8-mip"][minified as usize];
+        let name = case_name(layout, compressed) + ["", "-r8", "-r8-mip", "-pca"][minified as usize];
         let t = Instant::now();
         let enc = compressed.then_some(Bc1Encoder::Ispc);
-        let repeats = if minified > 0 { 8.0 } else { 1.0 };
-        let prepared = match (&mip, minified) {
-            (Some(m), 2) => PreparedBtf::with_mip(m, layout, enc, BtfSurface::quad(2.0, repeats))?,
+        let repeats = if minified == 1 || minified == 2 { 8.0 } else { 1.0 };
+        let prepared = match (&mip, &pca, minified) {
+            (Some(m), _, 2) => PreparedBtf::with_mip(m, layout, enc, BtfSurface::quad(2.0, repeats))?,
+            (_, Some(p), 3) => PreparedBtf::with_pca(p, layout, index.clone(), BtfSurface::quad(2.0, repeats))?,
             _ => PreparedBtf::new(&btf, layout, enc, index.clone(), BtfSurface::quad(2.0, repeats))?,
         };
         let prep_ms = t.elapsed().as_secs_f64() * 1e3;
@@ -234,7 +269,15 @@ pub fn btf(args: BtfArgs) -> Result<(), CliError> {
                 bc1::encode(&original.texels, original.width, original.height, original.depth, Bc1Encoder::Ispc)
                     .map_err(|e| CliError::Internal(e.to_string()))?;
             let encode_ms = t.elapsed().as_secs_f64() * 1e3;
+            // 4 bits a texel, without the layout's padding (as the PCA's bytes are counted)
+            let bytes = rgb8 / 6;
             std::hint::black_box(blocks);
+            compression.push(CompressionRow {
+                case: name.clone(),
+                bytes,
+                ratio: rgb8 as f64 / bytes as f64,
+                psnr_db: psnr,
+            });
             snr.push(Snr { case: name.clone(), psnr_db: psnr, paper_db: paper_snr(layout), encode_ms });
         }
         // texture-cache model over the first frame's fragments
@@ -296,6 +339,7 @@ pub fn btf(args: BtfArgs) -> Result<(), CliError> {
         snr,
         encoders,
         cache_model: cache_rows,
+        compression,
     };
     if args.json {
         let text = serde_json::to_string_pretty(&report).map_err(|e| CliError::Internal(e.to_string()))?;
@@ -358,6 +402,16 @@ fn print_report(r: &BtfReport) {
             e.texels as f64 / e.ms / 1e3,
             e.psnr_db
         );
+    }
+    if !r.compression.is_empty() {
+        say!();
+        say!(
+            "compressed codebooks (ratio: the BTF's RGB8 texels over the compressed bytes, both without the layouts' padding; PSNR against them, RGB):"
+        );
+        say!("{:<16} {:>12} {:>9} {:>9}", "case", "bytes", "ratio", "dB");
+        for c in &r.compression {
+            say!("{:<16} {:>12} {:>9} {:>9.2}", c.case, c.bytes, format!("1:{:.1}", c.ratio), c.psnr_db);
+        }
     }
     say!();
     say!("texture-cache model ({}), first frame:", r.cache);

@@ -6,6 +6,7 @@ use clap::{Subcommand, ValueEnum};
 use glam::Vec3;
 use hitex_core::btf::index::{IndexMap, SynthesisOptions, features, seam_quality, synthesize_index};
 use hitex_core::btf::mip::BtfMip;
+use hitex_core::btf::pca::{LocalPca, PcaOptions};
 use hitex_core::btf::synth::{Material, SynthOptions, synthesize};
 use hitex_core::btf::{AngularGrid, Btf, Layout};
 use hitex_core::scene::Camera;
@@ -144,7 +145,54 @@ pub enum BtfCommand {
         /// a note.
         #[arg(long, value_enum, default_value_t = MipArg::Auto)]
         mip: MipArg,
+        /// Compress the codebook by local PCA before rendering:
+        /// CLUSTERS,COMPONENTS (e.g. 1,8: one basis of 8 principal
+        /// components; each sample texel keeps its cluster and that many
+        /// coefficients). Rendered from the compressed form on both
+        /// backends; no BC1, no MIP mapping.
+        #[arg(long, value_parser = parse_pca)]
+        pca: Option<PcaOptions>,
     },
+}
+
+/// `CLUSTERS,COMPONENTS` of `--pca`.
+pub fn parse_pca(s: &str) -> Result<PcaOptions, String> {
+    let (c, k) = s.split_once(',').ok_or_else(|| format!("'{s}' is not CLUSTERS,COMPONENTS (e.g. 1,8)"))?;
+    let clusters: usize = c.trim().parse().map_err(|_| format!("clusters '{c}' is not a whole number"))?;
+    let components: usize = k.trim().parse().map_err(|_| format!("components '{k}' is not a whole number"))?;
+    if clusters == 0 || clusters > hitex_core::btf::pca::MAX_PCA_CLUSTERS {
+        return Err(format!("{clusters} clusters; 1..={} are allowed", hitex_core::btf::pca::MAX_PCA_CLUSTERS));
+    }
+    if components > hitex_core::btf::pca::MAX_PCA_COMPONENTS {
+        return Err(format!("{components} components; 0..={} are allowed", hitex_core::btf::pca::MAX_PCA_COMPONENTS));
+    }
+    Ok(PcaOptions { clusters, components })
+}
+
+/// [`hitex_core::btf::pca::fit`] with a progress bar; prints the ratio and
+/// the PSNR unless `quiet`.
+pub fn pca_with_progress(btf: &Btf, opts: PcaOptions, quiet: bool) -> Result<(LocalPca, f64), CliError> {
+    let pb = if quiet { Progress::hidden() } else { bar(0, "local PCA") };
+    let t = Instant::now();
+    let pca = hitex_core::btf::pca::fit(btf, opts, &|done, total| {
+        pb.set_length(total as u64);
+        pb.set_position(done as u64);
+    })
+    .map_err(|e| CliError::Input(e.to_string()))?;
+    pb.finish_and_clear();
+    let psnr = pca.psnr(btf).map_err(|e| CliError::Internal(e.to_string()))?;
+    if !quiet {
+        eprintln!(
+            "local PCA: {} cluster(s) x {} component(s): {:.2} MiB for {:.2} MiB raw (1:{:.1}), {psnr:.2} dB against the raw texels, fitted in {:.1} s",
+            opts.clusters,
+            opts.components,
+            pca.bytes() as f64 / 1048576.0,
+            pca.raw_bytes() as f64 / 1048576.0,
+            pca.ratio(),
+            t.elapsed().as_secs_f64()
+        );
+    }
+    Ok((pca, psnr))
 }
 
 /// MIP mapping of a BTF render.
@@ -678,8 +726,20 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             exposure,
             tone_map,
             mip,
+            pca,
         } => {
             crate::image_out(&output)?;
+            if pca.is_some() && bc1 {
+                return Err(CliError::Input(
+                    "--pca and --bc1 exclude each other: the PCA basis is half floats, which BC1 cannot hold".into(),
+                ));
+            }
+            if pca.is_some() && mip == MipArg::On {
+                return Err(CliError::Input(
+                    "--pca renders without MIP mapping (the PCA of MIP levels is not built); use --mip off or auto"
+                        .into(),
+                ));
+            }
             if !(exposure.is_finite() && exposure.abs() <= 64.0) {
                 return Err(CliError::Input(format!("--exposure {exposure} must be in [-64, 64] stops")));
             }
@@ -715,10 +775,21 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 );
                 Ok((PreparedBtf::with_mip(&m, layout, enc, surface)?, note))
             };
-            let (mut prepared, mip_note) = match mip {
-                MipArg::Off => (PreparedBtf::new(&btf, layout, enc, map.clone(), surface)?, String::new()),
-                MipArg::On => with_mip(surface)?,
-                MipArg::Auto => match with_mip(surface.clone()) {
+            let (mut prepared, mip_note) = match (pca, mip) {
+                (Some(opts), _) => {
+                    let (pca, psnr) = pca_with_progress(&btf, opts, false)?;
+                    let note = format!(
+                        ", local PCA {}x{} (1:{:.1}, {psnr:.1} dB; {} basis images read per cluster), without MIP",
+                        opts.clusters,
+                        opts.components,
+                        pca.ratio(),
+                        opts.components + 1
+                    );
+                    (PreparedBtf::with_pca(&pca, layout, map.clone(), surface)?, note)
+                }
+                (None, MipArg::Off) => (PreparedBtf::new(&btf, layout, enc, map.clone(), surface)?, String::new()),
+                (None, MipArg::On) => with_mip(surface)?,
+                (None, MipArg::Auto) => match with_mip(surface.clone()) {
                     Ok(p) => p,
                     // a pyramid that does not fit; anything else is an error
                     Err(CliError::Input(e)) => {

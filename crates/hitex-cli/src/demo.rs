@@ -131,6 +131,26 @@ fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) ->
         &side_by_side(&panels),
         ms_sum,
     )?;
+    // local PCA: the raw codebook | one basis of 8 components | of 2 | the difference × 8
+    let mut panels = vec![panels[1].clone()];
+    let mut notes = Vec::new();
+    let mut ms_sum = 0.0;
+    for k in [8, 2] {
+        let opts = hitex_core::btf::pca::PcaOptions { clusters: 1, components: k };
+        let (pca, psnr) = crate::btf_cmd::pca_with_progress(&btf, opts, true)?;
+        let p = PreparedBtf::with_pca(&pca, Layout::F, index.clone(), quad.clone())?;
+        let t = Instant::now();
+        panels.push(render_frame(r, &Job::Btf { surface: &p, camera: cam, light }, (side, side))?);
+        ms_sum += t.elapsed().as_secs_f64() * 1e3;
+        notes.push(format!("{k} components (1:{:.0}, {psnr:.1} dB)", pca.ratio()));
+    }
+    panels.push(diff_x8(&panels[0], &panels[1]));
+    report(
+        "btf-pca.png",
+        &format!("BTF local PCA, layout (f): raw | {} | {} | |raw - 8 components| x 8", notes[0], notes[1]),
+        &side_by_side(&panels),
+        ms_sum,
+    )?;
     // MIP mapping: the woven on a far, grazing quad of 24 repeats beside a 4×4
     // supersampled reference, and the corduroy on the teapot at 6 repeats,
     // each without and with the pyramid
@@ -184,7 +204,7 @@ fn btf_showcase(r: &mut AnyRenderer, report: &mut Report<'_>, w: u32, h: u32) ->
         &index_preview(&btf, &index),
         0.0,
     )?;
-    Ok(6)
+    Ok(7)
 }
 
 /// The Olinda pair (SRTM-derived DEM and Landsat 7 ETM+ bands, UTM 25S),

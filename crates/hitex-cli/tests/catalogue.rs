@@ -489,6 +489,14 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
         &["btf", "render", "knit", "--size", "8x8", "-o", &s(&d.join("x.txt")), "--backend", "cpu"],
     ));
     v.push(c("btf render", "--repeats 0", &["btf", "render", "knit", "--repeats", "0", "-o", &out]));
+    v.push(c("btf render", "--pca 0,4 (no cluster)", &["btf", "render", "knit", "--pca", "0,4", "-o", &out]));
+    v.push(c("btf render", "--pca 8 (not CLUSTERS,COMPONENTS)", &["btf", "render", "knit", "--pca", "8", "-o", &out]));
+    v.push(c(
+        "btf render",
+        "--pca 1,16 (too many components)",
+        &["btf", "render", "knit", "--pca", "1,16", "-o", &out],
+    ));
+    v.push(c("btf render", "--pca with --bc1", &["btf", "render", "knit", "--pca", "1,8", "--bc1", "-o", &out]));
     let nonempty = d.join("nonempty");
     std::fs::create_dir_all(&nonempty).unwrap();
     std::fs::write(nonempty.join("keep.txt"), b"mine").unwrap();

@@ -15,7 +15,7 @@ struct Frame {
     tile: vec4<u32>,        // tile width, height, tiles per row; tone map
     strides: array<vec4<u32>, 2>,
     theta: array<vec4<f32>, 16>, // polar angles in degrees
-    mip: vec4<u32>,         // index-map MIP levels (1: none)
+    mip: vec4<u32>,         // index-map MIP levels (1: none); PCA components + 1 (0: raw)
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -26,6 +26,9 @@ struct Frame {
 @group(0) @binding(2) var codebook: texture_2d<f32>;
 //#endif
 @group(0) @binding(3) var filt: sampler;
+// a local-PCA codebook's per-texel half: per sample texel (mip.y + 3) / 4
+// texels, the cluster in the first channel, then the coefficients
+@group(0) @binding(4) var pca_coefs: texture_2d<f32>;
 
 struct VsIn {
     @location(0) position: vec3<f32>,
@@ -279,11 +282,56 @@ fn index_level(uv: vec2<f32>, level: u32, l: array<Lerp, 4>) -> vec3<f32> {
     let e10 = textureLoad(index_map, vec2<u32>(x1, y0), 0).xy;
     let e01 = textureLoad(index_map, vec2<u32>(x0, y1), 0).xy;
     let e11 = textureLoad(index_map, vec2<u32>(x1, y1), 0).xy;
+    let w = array<f32, 4>((1.0 - tx.f) * (1.0 - ty.f), tx.f * (1.0 - ty.f), (1.0 - tx.f) * ty.f, tx.f * ty.f);
+    if (frame.mip.y > 0u) {
+        return pca_value(array<vec2<u32>, 4>(e00, e10, e01, e11), w, l);
+    }
     // hexa-linear over the angles through the layout's reads
-    var acc = fetch_corner(e00.x, e00.y, l) * ((1.0 - tx.f) * (1.0 - ty.f));
-    acc = acc + fetch_corner(e10.x, e10.y, l) * (tx.f * (1.0 - ty.f));
-    acc = acc + fetch_corner(e01.x, e01.y, l) * ((1.0 - tx.f) * ty.f);
-    acc = acc + fetch_corner(e11.x, e11.y, l) * (tx.f * ty.f);
+    var acc = fetch_corner(e00.x, e00.y, l) * w[0];
+    acc = acc + fetch_corner(e10.x, e10.y, l) * w[1];
+    acc = acc + fetch_corner(e01.x, e01.y, l) * w[2];
+    acc = acc + fetch_corner(e11.x, e11.y, l) * w[3];
+    return acc;
+}
+
+// ---- local PCA (cpu/btf.rs, pca_pixel) ----
+
+fn pca_slot(e: vec2<u32>, j: u32) -> f32 {
+    let per = (frame.mip.y + 3u) / 4u;
+    let t = textureLoad(pca_coefs, vec2<u32>(e.x * per + j / 4u, e.y), 0);
+    return t[j % 4u];
+}
+
+// Per cluster among the four index texels, in order of first appearance:
+// their coefficients blended by their weights, then each basis image of the
+// cluster (sample texel (j, cluster) of the basis codebook) read once.
+fn pca_value(e: array<vec2<u32>, 4>, w: array<f32, 4>, l: array<Lerp, 4>) -> vec3<f32> {
+    let slots = frame.mip.y;
+    var cl: array<u32, 4>;
+    for (var q = 0u; q < 4u; q = q + 1u) {
+        cl[q] = u32(pca_slot(e[q], 0u) + 0.5);
+    }
+    var done = array<bool, 4>(false, false, false, false);
+    var acc = vec3<f32>(0.0);
+    for (var q = 0u; q < 4u; q = q + 1u) {
+        if (done[q]) {
+            continue;
+        }
+        let c = cl[q];
+        var bw: array<f32, 16>;
+        for (var r = q; r < 4u; r = r + 1u) {
+            if (!done[r] && cl[r] == c) {
+                done[r] = true;
+                bw[0] = bw[0] + w[r];
+                for (var j = 1u; j < slots; j = j + 1u) {
+                    bw[j] = bw[j] + w[r] * pca_slot(e[r], j);
+                }
+            }
+        }
+        for (var j = 0u; j < slots; j = j + 1u) {
+            acc = acc + fetch_corner(j, c, l) * bw[j];
+        }
+    }
     return acc;
 }
 

@@ -6,6 +6,7 @@ use crate::RenderError;
 use glam::{Mat4, Vec2, Vec3};
 use hitex_core::btf::index::IndexMap;
 use hitex_core::btf::mip::BtfMip;
+use hitex_core::btf::pca::LocalPca;
 use hitex_core::btf::{AngularGrid, Btf, Codebook, Layout};
 use hitex_core::nurbs::NurbsSurface;
 use hitex_core::scene::{Camera, Mesh};
@@ -207,7 +208,8 @@ pub struct BtfFrame {
     pub strides: [[u32; 4]; 2],
     /// Polar angles of the grid in degrees, 4 per vector.
     pub theta: [[f32; 4]; MAX_RENDER_THETA / 4],
-    /// Index-map MIP levels (1 without MIP mapping); unused ×3.
+    /// Index-map MIP levels (1 without MIP mapping); local-PCA components
+    /// + 1 (0: a raw codebook); unused ×2.
     pub mip: [u32; 4],
 }
 
@@ -249,6 +251,38 @@ pub struct PreparedBtf {
     pub(crate) mip_entries: Vec<u32>,
     /// Where each level starts in `mip_entries`.
     pub(crate) mip_offsets: Vec<u32>,
+    /// The coefficients of a local-PCA codebook ([`PreparedBtf::with_pca`]).
+    pub(crate) pca: Option<PcaTables>,
+}
+
+/// The per-texel half of a local-PCA BTF as both programs read it: for each
+/// sample texel its cluster and its coefficients, decoded (CPU) and as
+/// RGBA16F texels (GPU: `texels_per` texels a sample texel, the cluster in
+/// the first channel, then the coefficients).
+#[derive(Debug, Clone)]
+pub(crate) struct PcaTables {
+    /// Principal components per cluster.
+    pub(crate) components: u32,
+    /// Sample width in texels.
+    pub(crate) sample_w: u32,
+    /// Sample height in texels.
+    pub(crate) sample_h: u32,
+    /// Per sample texel, row-major: the cluster.
+    pub(crate) cluster: Vec<u32>,
+    /// Per sample texel: `components` coefficients.
+    pub(crate) coefs: Vec<f32>,
+    /// RGBA16F texels per sample texel on the GPU.
+    pub(crate) texels_per: u32,
+    /// The GPU texture's halves, `texels_per × sample_w` texels a row.
+    pub(crate) gpu: Vec<u16>,
+}
+
+impl PcaTables {
+    /// Sample texel `e`'s row-major index.
+    #[inline(always)]
+    pub(crate) fn texel(&self, su: u32, sv: u32) -> usize {
+        (sv * self.sample_w + su) as usize
+    }
 }
 
 impl PreparedBtf {
@@ -290,24 +324,88 @@ impl PreparedBtf {
             }
             None => None,
         };
+        Ok(Self::assemble(codebook, blocks, index, btf.grid(), surface, None))
+    }
+
+    /// A prepared BTF at exposure 1, no tone map, no MIP levels.
+    fn assemble(
+        codebook: Codebook,
+        bc1: Option<Vec<u8>>,
+        index: IndexMap,
+        grid: &AngularGrid,
+        surface: BtfSurface,
+        pca: Option<PcaTables>,
+    ) -> Self {
         // an HDR codebook is read from its half floats (`codebook.half`) by both backends
         let linear = if codebook.is_hdr() { Vec::new() } else { codebook.linear_texels16() };
-        Ok(Self {
+        Self {
             linear,
             id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             vertices: surface.vertices,
             indices: surface.indices,
             codebook,
-            bc1: blocks,
+            bc1,
             index,
-            grid: btf.grid().clone(),
+            grid: grid.clone(),
             background: Vec3::new(0.02, 0.02, 0.025),
             exposure: 1.0,
             tone_map: ToneMap::None,
             mip: Vec::new(),
             mip_entries: Vec::new(),
             mip_offsets: Vec::new(),
-        })
+            pca,
+        }
+    }
+
+    /// A BTF compressed by local PCA ([`hitex_core::btf::pca`]) over
+    /// `surface`, read through `index` (which names texels of the original
+    /// sample): the basis laid out as `layout` in half floats, read with the
+    /// same hexa-linear reads as a raw codebook, and blended per pixel with
+    /// the coefficients of the index texels (those of one cluster blended
+    /// first, so that a pixel reads each basis image once per cluster among
+    /// its four index texels). No BC1, no MIP mapping.
+    pub fn with_pca(pca: &LocalPca, layout: Layout, index: IndexMap, surface: BtfSurface) -> Result<Self, RenderError> {
+        let invalid = |e: hitex_core::CoreError| RenderError::Invalid(e.to_string());
+        if pca.grid().theta_count() > MAX_RENDER_THETA {
+            return Err(RenderError::Invalid(format!(
+                "the renderer takes at most {MAX_RENDER_THETA} polar angles; this BTF has {}",
+                pca.grid().theta_count()
+            )));
+        }
+        if index.width == 0 || index.height == 0 || index.entries.len() != (index.width * index.height) as usize {
+            return Err(RenderError::Invalid("the index map is empty or inconsistent".into()));
+        }
+        let (w, h) = (pca.width(), pca.height());
+        if index.entries.iter().any(|e| e[0] as u32 >= w || e[1] as u32 >= h) {
+            return Err(RenderError::Invalid("the index map names texels outside the BTF sample".into()));
+        }
+        let k = pca.components();
+        let codebook =
+            Codebook::build_signed(pca.grid(), k + 1, pca.clusters(), pca.basis_halves(), layout).map_err(invalid)?;
+        let texels_per = (k + 1).div_ceil(4);
+        let mut cluster = Vec::with_capacity((w * h) as usize);
+        let mut coefs = Vec::with_capacity((w * h * k) as usize);
+        let mut gpu = vec![0u16; (w * h * texels_per * 4) as usize];
+        for y in 0..h {
+            for x in 0..w {
+                let c = pca.cluster_of(x, y);
+                cluster.push(c);
+                let t = (y * w + x) as usize;
+                let slots = &mut gpu[t * texels_per as usize * 4..(t + 1) * texels_per as usize * 4];
+                slots[0] = hitex_core::btf::pca::signed_half_bits(c as f32);
+                for (j, &a) in pca.coefs_of(x, y).iter().enumerate() {
+                    coefs.push(hitex_core::btf::dataset::half_value(a));
+                    slots[j + 1] = a;
+                }
+            }
+        }
+        let tables = PcaTables { components: k, sample_w: w, sample_h: h, cluster, coefs, texels_per, gpu };
+        Ok(Self::assemble(codebook, None, index, pca.grid(), surface, Some(tables)))
+    }
+
+    /// Whether the codebook is a local-PCA basis ([`PreparedBtf::with_pca`]).
+    pub fn is_pca(&self) -> bool {
+        self.pca.is_some()
     }
 
     /// A MIP-mapped BTF ([`hitex_core::btf::mip::build_mip`]): the stacked
@@ -388,7 +486,7 @@ impl PreparedBtf {
             tile: [cb.tile_w, cb.tile_h, cb.tile_cols, self.tone_map.code()],
             strides: [[s[0], s[1], s[2], s[3]], [s[4], s[5], 0, 0]],
             theta,
-            mip: [self.mip_levels() as u32, 0, 0, 0],
+            mip: [self.mip_levels() as u32, self.pca.as_ref().map_or(0, |p| p.components + 1), 0, 0],
         }
     }
 }

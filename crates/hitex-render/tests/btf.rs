@@ -7,6 +7,7 @@ mod common;
 use common::{CPU_VS_REFERENCE, GPU_VS_CPU, Tolerance, assert_images, gpu_or_skip, reference};
 use glam::Vec3;
 use hitex_core::btf::index::IndexMap;
+use hitex_core::btf::pca::{LocalPca, PcaOptions};
 use hitex_core::btf::synth::{Material, SynthOptions, synthesize};
 use hitex_core::btf::{AngularGrid, Btf, Layout};
 use hitex_core::nurbs::NurbsSurface;
@@ -258,12 +259,14 @@ fn reads_per_pixel_are_the_papers() {
 #[allow(clippy::needless_range_loop)] // lanes index several arrays
 fn block_lanes_equal_the_per_pixel_program() {
     let m = mip_of(small_btf());
-    for (layout, kind) in Layout::ALL.into_iter().flat_map(|l| [(l, 0), (l, 1), (l, 2)]) {
+    for (layout, kind) in Layout::ALL.into_iter().flat_map(|l| [(l, 0), (l, 1), (l, 2), (l, 3)]) {
         let hdr = kind == 1;
+        let kind_name = ["raw", "hdr", "mip", "pca"][kind];
         let p = match kind {
             0 => prepared(layout, false),
             1 => prepared_hdr(layout, ToneMap::None, 0.25),
-            _ => PreparedBtf::with_mip(&m, layout, None, BtfSurface::quad(2.0, 2.0)).unwrap(),
+            2 => PreparedBtf::with_mip(&m, layout, None, BtfSurface::quad(2.0, 2.0)).unwrap(),
+            _ => PreparedBtf::with_pca(pca(3, 4), layout, index(), BtfSurface::quad(2.0, 2.0)).unwrap(),
         };
         let frame = p.frame(&camera(), LIGHT, W, H);
         let prog = BtfProgram::new(&p, &frame);
@@ -302,11 +305,103 @@ fn block_lanes_equal_the_per_pixel_program() {
                 // 16-bit texels against the scalar path's: within 2e-5 (half floats: the same values)
                 assert!(
                     (got - one).abs().max_element() < 2e-5,
-                    "{} hdr {hdr}: lane {i}: {got} vs {one}",
+                    "{} {kind_name} (hdr {hdr}): lane {i}: {got} vs {one}",
                     layout.label()
                 );
             }
         }
+    }
+}
+
+/// `small_btf` compressed by local PCA into `clusters` clusters of `k` components.
+fn pca(clusters: usize, k: usize) -> &'static LocalPca {
+    type Fitted = Vec<((usize, usize), &'static LocalPca)>;
+    static P: OnceLock<std::sync::Mutex<Fitted>> = OnceLock::new();
+    let mut cache = P.get_or_init(Default::default).lock().unwrap();
+    if let Some((_, p)) = cache.iter().find(|(key, _)| *key == (clusters, k)) {
+        return p;
+    }
+    let p: &'static LocalPca = Box::leak(Box::new(
+        hitex_core::btf::pca::fit(small_btf(), PcaOptions { clusters, components: k }, &|_, _| {}).unwrap(),
+    ));
+    cache.push(((clusters, k), p));
+    p
+}
+
+/// A BTF whose linear texels are a mean plus three patterns mixed per
+/// texel, all inside [0.2, 0.6]: a local PCA of three components holds it
+/// to its 8-bit rounding, and no reconstructed value is clamped at 0.
+fn low_rank_btf() -> &'static Btf {
+    static B: OnceLock<Btf> = OnceLock::new();
+    B.get_or_init(|| {
+        let grid = AngularGrid::new(vec![0.0, 20.0, 40.0, 60.0], 8).unwrap();
+        let d = grid.directions();
+        let wave = |a: usize, b: usize| ((a * 37 + b * 11) % 17) as f32 / 16.0 - 0.5;
+        let mut texels = Vec::with_capacity(d * d * 64 * 3);
+        for i in 0..d * d {
+            for t in 0..64 {
+                for ch in 0..3 {
+                    let mut v = 0.4 + 0.05 * wave(i, ch);
+                    for r in 0..3 {
+                        v += 0.12 * wave(i * 3 + ch, r + 1) * wave(t, r + 5);
+                    }
+                    texels.push(hitex_core::texture::linear_to_srgb_u8(v));
+                }
+            }
+        }
+        Btf::new(grid, 8, 8, texels).unwrap()
+    })
+}
+
+/// A PCA codebook and its decompressed 8-bit BTF differ by the 8-bit
+/// rounding of the decompressed texels, before filtering.
+const PCA_VS_DECOMPRESSED: Tolerance = Tolerance { mean_abs: 0.3, p99: 2 };
+
+#[test]
+fn pca_codebooks_render_their_reconstruction_on_both_backends() {
+    let p = pca(3, 4);
+    // (the woven is a hard case for PCA: its texels' shadows differ texel by texel)
+    let (with, means) = (p.psnr(small_btf()).unwrap(), pca(3, 0).psnr(small_btf()).unwrap());
+    assert!(with > means + 1.0, "4 components {with} dB, cluster means alone {means} dB");
+    let quad = || BtfSurface::quad(2.0, 2.0);
+    let exact =
+        hitex_core::btf::pca::fit(low_rank_btf(), PcaOptions { clusters: 2, components: 3 }, &|_, _| {}).unwrap();
+    assert!(exact.psnr(low_rank_btf()).unwrap() > 45.0);
+    let back = exact.decompress().unwrap();
+    let mut frames = Vec::new();
+    for layout in Layout::ALL {
+        let compressed = PreparedBtf::with_pca(&exact, layout, index(), quad()).unwrap();
+        assert!(compressed.is_pca() && compressed.is_hdr());
+        let c = cpu(&compressed);
+        let want = cpu(&PreparedBtf::new(&back, layout, None, index(), quad()).unwrap());
+        assert_images(&format!("btf-pca-{}", layout.name()), &c, &want, PCA_VS_DECOMPRESSED);
+        frames.push((layout, compressed, c));
+        let woven = PreparedBtf::with_pca(p, layout, index(), quad()).unwrap();
+        let c = cpu(&woven);
+        frames.push((layout, woven, c));
+    }
+    // one cluster: every pixel reads each of the k + 1 basis images once, through the layout's reads
+    // (a raw codebook reads its four index texels' images: codebook_reads() in all)
+    let one = pca(1, 5);
+    for layout in Layout::ALL {
+        let compressed = PreparedBtf::with_pca(one, layout, index(), quad()).unwrap();
+        let prog = BtfProgram::new(&compressed, &compressed.frame(&camera(), LIGHT, W, H));
+        let mut v = varyings(&compressed.vertices[0]);
+        v[12] += 0.37;
+        v[13] += 0.41;
+        let c = prog.count_reads(&v);
+        assert_eq!(c.reads, 6 * layout.codebook_reads() as u64 / 4, "{}", layout.label());
+    }
+    // a sample of mismatched size is refused
+    let e = PreparedBtf::with_pca(p, Layout::F, IndexMap::identity(9, 9, 9, 9), quad()).unwrap_err().to_string();
+    assert!(e.contains("outside the BTF sample"), "{e}");
+    let Some(mut gpu) = gpu_or_skip("pca_codebooks_render_their_reconstruction_on_both_backends (GPU half)") else {
+        return;
+    };
+    for (n, (layout, compressed, c)) in frames.into_iter().enumerate() {
+        let g = gpu.render_btf(&compressed, &camera(), LIGHT, W, H).unwrap();
+        let which = if n % 2 == 0 { "low-rank" } else { "woven" };
+        assert_images(&format!("btf-gpu-pca-{which}-{}", layout.name()), &g, &c, GPU_VS_CPU);
     }
 }
 

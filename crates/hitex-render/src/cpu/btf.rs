@@ -26,7 +26,7 @@ use super::simd::{LANES, Lanes, V3, ddx, ddy, floor, lanes, whole_u32};
 use crate::btf::{BtfFrame, BtfVertex, MAX_RENDER_THETA, PreparedBtf};
 use glam::Vec3;
 use hitex_core::btf::frames::acos;
-use hitex_core::btf::layout::{Axis, FetchSink, HALF_UNIT, Half4, LinearTexel, ReadCounter};
+use hitex_core::btf::layout::{Axis, FetchSink, HALF_UNIT, Half4, LinearTexel, ReadCounter, half_to_scaled_f32_bits};
 use hitex_core::btf::{AngleLerps, AngularGrid, Codebook, angles};
 use hitex_core::texture::ToneMap;
 
@@ -143,7 +143,9 @@ impl<'a> BtfProgram<'a> {
             }
         }
         let mut acc = Vec3::ZERO;
-        if S::COUNTS {
+        if let Some(p) = &self.scene.pca {
+            acc = self.pca_pixel(p, &corners, &l, sink);
+        } else if S::COUNTS {
             for (e, wgt) in corners {
                 // hexa-linear over the angles through the layout's reads
                 acc += cb.corner(e[0] as u32, e[1] as u32, &l, sink) * wgt;
@@ -164,6 +166,52 @@ impl<'a> BtfProgram<'a> {
             acc = a4.truncate();
         }
         acc * self.exposure
+    }
+
+    /// The local-PCA twin of the reads of one pixel ([`BtfProgram::pca_lanes`]
+    /// on one lane): per cluster among the index texels, in order of first
+    /// appearance, their coefficients blended, then the cluster's basis
+    /// images read once each.
+    fn pca_pixel<S: FetchSink>(
+        &self,
+        p: &crate::btf::PcaTables,
+        corners: &[([u16; 2], f32)],
+        l: &AngleLerps,
+        sink: &mut S,
+    ) -> Vec3 {
+        let cb = &self.scene.codebook;
+        let k = p.components as usize;
+        let plan = (!S::COUNTS).then(|| cb.plan(l));
+        let half: &[Half4] = bytemuck::cast_slice(&cb.half);
+        let texel = |e: [u16; 2]| p.texel(e[0] as u32, e[1] as u32).min(p.cluster.len() - 1);
+        let mut done = vec![false; corners.len()];
+        let mut acc = glam::Vec4::ZERO;
+        for q in 0..corners.len() {
+            if done[q] {
+                continue;
+            }
+            let c = p.cluster[texel(corners[q].0)];
+            let mut bw = [0f32; 1 + hitex_core::btf::pca::MAX_PCA_COMPONENTS];
+            for r in q..corners.len() {
+                let t = texel(corners[r].0);
+                if !done[r] && p.cluster[t] == c {
+                    done[r] = true;
+                    let w = corners[r].1;
+                    bw[0] += w;
+                    for j in 0..k {
+                        bw[j + 1] += w * p.coefs[t * k + j];
+                    }
+                }
+            }
+            for (j, &b) in bw.iter().enumerate().take(k + 1) {
+                let v = match &plan {
+                    Some(plan) => cb.corner_planned_linear(plan, j as u32, c, half),
+                    None => cb.corner(j as u32, c, l, sink).extend(0.0),
+                };
+                acc += v * b;
+            }
+        }
+        acc.truncate()
     }
 
     /// The MIP level pair of a level of detail and the second's weight
@@ -355,67 +403,50 @@ impl<'a> BtfProgram<'a> {
         if entries.is_empty() || texels.is_empty() {
             return;
         }
-        // indices clamped to the last element need no bounds check
-        let (last_entry, last_texel) = (entries.len() - 1, texels.len() - 1);
-        let width = cb.width;
-        let (tile_step, tile_w, cols) = (cb.tile_h * width, cb.tile_w, cb.tile_cols);
         // k / cols as a multiply and a shift, exact for every k below the
         // tile count (m = ⌈2^s / cols⌉ with 2^s ≥ tile count × cols: the
         // excess k·(m − 2^s/cols)/2^s stays below 1/cols); lanes that read
         // nothing may hold larger k, whose quotient only has to stay in u64
         // (m < 2^32) and whose index is clamped below
-        let (magic, magic_shift) = div_magic(cols, cb.tile_count);
+        let (magic, magic_shift) = div_magic(cb.tile_cols, cb.tile_count);
+        let reads = LaneReads::<NC, NT, HDR> {
+            ck: &ck,
+            cw: &cw,
+            to: &to,
+            tw: &tw,
+            texels,
+            last_texel: texels.len() - 1,
+            tile_step: cb.tile_h * cb.width,
+            tile_w: cb.tile_w,
+            cols: cb.tile_cols,
+            magic,
+            magic_shift,
+        };
+        // indices clamped to the last element need no bounds check
+        let last_entry = entries.len() - 1;
+        let width = cb.width;
         let (su_on_x, sv_on_y) = (r.u_on_x as u32, r.v_on_y as u32);
         let mut acc = [[0.0f32; LANES]; 3];
-        // every lane reads (clamped indices), so that the reads are gathers
-        for q in 0..nq {
-            // the index texel: sample texel (su, sv) (one read)
-            let mut key = [0u32; LANES];
-            let mut shift = [0u32; LANES];
-            for i in 0..LANES {
-                let e = entries[(at[q][i] as usize).min(last_entry)];
-                let (su, sv) = (e & 0xffff, e >> 16);
-                key[i] = su * cb.strides[0] + sv * cb.strides[1];
-                shift[i] = sv * sv_on_y * width + su * su_on_x;
-            }
-            // hexa-linear over the angles through the layout's reads
-            let mut corner = [[0.0f32; LANES]; 3];
-            for c in 0..NC {
-                let mut base = [0u32; LANES];
+        if let Some(p) = &self.scene.pca {
+            self.pca_lanes(p, &reads, entries, &at, &wgt, nq, lit, &mut acc);
+        } else {
+            // every lane reads (clamped indices), so that the reads are gathers
+            for q in 0..nq {
+                // the index texel: sample texel (su, sv) (one read)
+                let mut key = [0u32; LANES];
+                let mut shift = [0u32; LANES];
                 for i in 0..LANES {
-                    let k = ck[c][i].wrapping_add(key[i]);
-                    let row = ((k as u64 * magic) >> magic_shift) as u32;
-                    base[i] = row
-                        .wrapping_mul(tile_step)
-                        .wrapping_add(k.wrapping_sub(row.wrapping_mul(cols)).wrapping_mul(tile_w))
-                        .wrapping_add(shift[i]);
+                    let e = entries[(at[q][i] as usize).min(last_entry)];
+                    let (su, sv) = (e & 0xffff, e >> 16);
+                    key[i] = su * cb.strides[0] + sv * cb.strides[1];
+                    shift[i] = sv * sv_on_y * width + su * su_on_x;
                 }
-                for t in 0..NT {
-                    let mut px = [0u64; LANES];
+                // hexa-linear over the angles through the layout's reads
+                let corner = reads.corner(&key, &shift);
+                for ch in 0..3 {
                     for i in 0..LANES {
-                        px[i] = texels[((base[i] + to[t][i]) as usize).min(last_texel)];
+                        acc[ch][i] += corner[ch][i] * wgt[q][i];
                     }
-                    if HDR {
-                        let h = |p: u64, s: u32| f32::from_bits((((p >> s) & 0x7fff) as u32) << 13);
-                        for i in 0..LANES {
-                            let w = cw[c][i] * tw[t][i] * HALF_UNIT;
-                            corner[0][i] += h(px[i], 0) * w;
-                            corner[1][i] += h(px[i], 16) * w;
-                            corner[2][i] += h(px[i], 32) * w;
-                        }
-                    } else {
-                        for i in 0..LANES {
-                            let w = cw[c][i] * tw[t][i];
-                            corner[0][i] += (px[i] & 0xffff) as i32 as f32 * w;
-                            corner[1][i] += ((px[i] >> 16) & 0xffff) as i32 as f32 * w;
-                            corner[2][i] += ((px[i] >> 32) & 0xffff) as i32 as f32 * w;
-                        }
-                    }
-                }
-            }
-            for ch in 0..3 {
-                for i in 0..LANES {
-                    acc[ch][i] += corner[ch][i] * wgt[q][i];
                 }
             }
         }
@@ -423,6 +454,96 @@ impl<'a> BtfProgram<'a> {
         for ch in 0..3 {
             for i in 0..LANES {
                 out[ch][i] = if lit & (1 << i) != 0 { acc[ch][i] * scale } else { 0.0 };
+            }
+        }
+    }
+
+    /// The reads of a local-PCA codebook for the lit lanes: per lane, the
+    /// clusters of its `nq` index texels in order of first appearance; per
+    /// cluster the coefficients of its index texels blended by their
+    /// weights, then every basis image of that cluster read once (the same
+    /// hexa-linear reads as a raw codebook's, at sample texel (j, cluster))
+    /// and weighted by the blended coefficient j (1 for the mean). A pass
+    /// runs while some lane has index texels left; lanes with none read
+    /// with zero weights.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn pca_lanes<const NC: usize, const NT: usize, const HDR: bool>(
+        &self,
+        p: &crate::btf::PcaTables,
+        reads: &LaneReads<'_, NC, NT, HDR>,
+        entries: &[u32],
+        at: &[[u32; LANES]; 8],
+        wgt: &[[f32; LANES]; 8],
+        nq: usize,
+        lit: u16,
+        acc: &mut [Lanes; 3],
+    ) {
+        let cb = &self.scene.codebook;
+        let r = &self.reads;
+        let k = p.components as usize;
+        let last_entry = entries.len() - 1;
+        let last_texel = p.cluster.len() - 1;
+        // each index texel's sample texel, cluster
+        let mut texel = [[0usize; LANES]; 8];
+        let mut cl = [[0u32; LANES]; 8];
+        for q in 0..nq {
+            for i in 0..LANES {
+                let e = entries[(at[q][i] as usize).min(last_entry)];
+                let t = p.texel(e & 0xffff, e >> 16).min(last_texel);
+                texel[q][i] = t;
+                cl[q][i] = p.cluster[t];
+            }
+        }
+        let mut pending = [0u16; 8];
+        for pq in pending.iter_mut().take(nq) {
+            *pq = lit;
+        }
+        let (su_on_x, sv_on_y) = (r.u_on_x as u32, r.v_on_y as u32);
+        loop {
+            // each lane's cluster for this pass: that of its first pending index texel
+            let mut target = [0u32; LANES];
+            let mut any = 0u16;
+            for q in (0..nq).rev() {
+                for i in 0..LANES {
+                    if pending[q] & (1 << i) != 0 {
+                        target[i] = cl[q][i];
+                    }
+                }
+                any |= pending[q];
+            }
+            if any == 0 {
+                return;
+            }
+            // the coefficients of the pending index texels of that cluster, blended
+            let mut bw = [[0.0f32; LANES]; 1 + hitex_core::btf::pca::MAX_PCA_COMPONENTS];
+            for q in 0..nq {
+                for i in 0..LANES {
+                    if pending[q] & (1 << i) != 0 && cl[q][i] == target[i] {
+                        pending[q] &= !(1 << i);
+                        let w = wgt[q][i];
+                        bw[0][i] += w;
+                        let a = &p.coefs[texel[q][i] * k..(texel[q][i] + 1) * k];
+                        for j in 0..k {
+                            bw[j + 1][i] += w * a[j];
+                        }
+                    }
+                }
+            }
+            // the cluster's basis images at the pixel's angles
+            for (j, bj) in bw.iter().enumerate().take(k + 1) {
+                let mut key = [0u32; LANES];
+                let mut shift = [0u32; LANES];
+                for i in 0..LANES {
+                    key[i] = j as u32 * cb.strides[0] + target[i] * cb.strides[1];
+                    shift[i] = target[i] * sv_on_y * cb.width + j as u32 * su_on_x;
+                }
+                let corner = reads.corner(&key, &shift);
+                for ch in 0..3 {
+                    for i in 0..LANES {
+                        acc[ch][i] += corner[ch][i] * bj[i];
+                    }
+                }
             }
         }
     }
@@ -443,6 +564,70 @@ fn div_magic(d: u32, bound: u32) -> (u64, u32) {
     let need = (bound.max(1) as u64) * d;
     let s = (64 - (need - 1).leading_zeros()).min(63);
     ((1u64 << s).div_ceil(d), s)
+}
+
+/// What a block's codebook reads share: the walked combinations' tile
+/// shares and weights, the filter's tap offsets and weights, the texels and
+/// the tile arithmetic.
+struct LaneReads<'a, const NC: usize, const NT: usize, const HDR: bool> {
+    ck: &'a [[u32; LANES]; NC],
+    cw: &'a [[f32; LANES]; NC],
+    to: &'a [[u32; LANES]; NT],
+    tw: &'a [[f32; LANES]; NT],
+    texels: &'a [u64],
+    last_texel: usize,
+    tile_step: u32,
+    tile_w: u32,
+    cols: u32,
+    /// k / cols as a multiply and a shift ([`div_magic`]).
+    magic: u64,
+    magic_shift: u32,
+}
+
+impl<const NC: usize, const NT: usize, const HDR: bool> LaneReads<'_, NC, NT, HDR> {
+    /// The hexa-linear interpolation over the angles, through the layout's
+    /// reads, of the sample texel whose tile share is `key` and in-tile
+    /// offset `shift`, per lane (RGB lanes, in texel units). `HDR`: the
+    /// texels are [`Half4`] words (their weights carry the unit 2¹¹², so
+    /// that no product is subnormal), else 16-bit fixed point.
+    #[inline(always)]
+    fn corner(&self, key: &[u32; LANES], shift: &[u32; LANES]) -> [Lanes; 3] {
+        let mut corner = [[0.0f32; LANES]; 3];
+        for c in 0..NC {
+            let mut base = [0u32; LANES];
+            for i in 0..LANES {
+                let k = self.ck[c][i].wrapping_add(key[i]);
+                let row = ((k as u64 * self.magic) >> self.magic_shift) as u32;
+                base[i] = row
+                    .wrapping_mul(self.tile_step)
+                    .wrapping_add(k.wrapping_sub(row.wrapping_mul(self.cols)).wrapping_mul(self.tile_w))
+                    .wrapping_add(shift[i]);
+            }
+            for t in 0..NT {
+                let mut px = [0u64; LANES];
+                for i in 0..LANES {
+                    px[i] = self.texels[((base[i] + self.to[t][i]) as usize).min(self.last_texel)];
+                }
+                if HDR {
+                    let h = |p: u64, s: u32| f32::from_bits(half_to_scaled_f32_bits((p >> s) as u16));
+                    for i in 0..LANES {
+                        let w = self.cw[c][i] * self.tw[t][i] * HALF_UNIT;
+                        corner[0][i] += h(px[i], 0) * w;
+                        corner[1][i] += h(px[i], 16) * w;
+                        corner[2][i] += h(px[i], 32) * w;
+                    }
+                } else {
+                    for i in 0..LANES {
+                        let w = self.cw[c][i] * self.tw[t][i];
+                        corner[0][i] += (px[i] & 0xffff) as i32 as f32 * w;
+                        corner[1][i] += ((px[i] >> 16) & 0xffff) as i32 as f32 * w;
+                        corner[2][i] += ((px[i] >> 32) & 0xffff) as i32 as f32 * w;
+                    }
+                }
+            }
+        }
+        corner
+    }
 }
 
 /// The two index texels around texture coordinate `t` (index-map repeats)

@@ -3,7 +3,7 @@
 //! BTF, RGBA16F), sampled with
 //! the hardware filter by `shaders/btf.wgsl`.
 
-use super::plumbing::{PipelineScope, UploadScope, UploadedMesh, uniform_buffer, uniform_entry};
+use super::plumbing::{PipelineScope, UploadScope, UploadedMesh, texture_entry, uniform_buffer, uniform_entry};
 use super::{GpuError, GpuRenderer, trusted_module};
 use crate::btf::{BtfFrame, BtfVertex, PreparedBtf};
 use crate::{Frame, RenderError};
@@ -94,6 +94,7 @@ impl BtfGpu {
                     ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
                     count: None,
                 },
+                texture_entry(4),
             ],
         });
         let attributes =
@@ -190,6 +191,32 @@ fn codebook_texture(
     Ok(tex)
 }
 
+/// A sampled 2-D texture of one level holding `bytes`.
+fn texture_2d(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    label: &str,
+    (width, height): (u32, u32),
+    format: wgpu::TextureFormat,
+    bytes: &[u8],
+) -> wgpu::Texture {
+    device.create_texture_with_data(
+        queue,
+        &wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        bytes,
+    )
+}
+
 /// The index atlas of `scene`: level 0 at the origin, levels 1, 2, … stacked
 /// top to bottom in a column at x = level 0's width. Returns its width, height
 /// and texels (u | v << 16).
@@ -242,19 +269,12 @@ impl GpuRenderer {
                 ))
                 .into());
             }
-            let index_tex = device.create_texture_with_data(
+            let index_tex = texture_2d(
+                device,
                 queue,
-                &wgpu::TextureDescriptor {
-                    label: Some("btf index"),
-                    size: wgpu::Extent3d { width: atlas_w, height: atlas_h, depth_or_array_layers: 1 },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: wgpu::TextureFormat::Rg16Uint,
-                    usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                    view_formats: &[],
-                },
-                wgpu::util::TextureDataOrder::LayerMajor,
+                "btf index",
+                (atlas_w, atlas_h),
+                wgpu::TextureFormat::Rg16Uint,
                 bytemuck::cast_slice(&texels),
             );
             let repeat_depth = layout.spec().depth.is_some_and(|a| matches!(a, Axis::PhiC | Axis::PhiL));
@@ -268,6 +288,26 @@ impl GpuRenderer {
                 mipmap_filter: wgpu::MipmapFilterMode::Nearest,
                 ..Default::default()
             });
+            // a local-PCA codebook's clusters and coefficients (one texel of zeros otherwise)
+            let (pca_w, pca_h, pca_halves) = match &scene.pca {
+                Some(p) => (p.texels_per * p.sample_w, p.sample_h, p.gpu.as_slice()),
+                None => (1, 1, &[0u16; 4][..]),
+            };
+            if pca_w > max || pca_h > max {
+                return Err(GpuError::Render(format!(
+                    "the PCA coefficients need {pca_w}x{pca_h} texels; the adapter allows {max} per side"
+                ))
+                .into());
+            }
+            let pca_tex = texture_2d(
+                device,
+                queue,
+                "btf pca coefficients",
+                (pca_w, pca_h),
+                wgpu::TextureFormat::Rgba16Float,
+                bytemuck::cast_slice(pca_halves),
+            );
+            let pca_view = pca_tex.create_view(&Default::default());
             let cb_view = codebook.create_view(&Default::default());
             let idx_view = index_tex.create_view(&Default::default());
             let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -278,6 +318,7 @@ impl GpuRenderer {
                     wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&idx_view) },
                     wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&cb_view) },
                     wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Sampler(&sampler) },
+                    wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&pca_view) },
                 ],
             });
             let mesh = UploadedMesh::new(device, "btf", scene.id(), &scene.vertices, &scene.indices, group);
