@@ -821,16 +821,29 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             } else {
                 String::new()
             };
+            // a PCA pixel reads its k + 1 basis images per cluster among its four index texels
+            let reads = match pca {
+                Some(o) => format!(
+                    "{} codebook reads per pixel and cluster among its index texels",
+                    layout.codebook_reads() as usize * (o.components + 1) / 4
+                ),
+                None => format!("{} codebook reads per pixel", layout.codebook_reads()),
+            };
             say!(
-                "wrote {} ({}x{}, layout {}{}{tone}{mip_note}, {} codebook reads per pixel, {}) in {ms:.1} ms (+{prep_ms:.0} ms layout{})",
+                "wrote {} ({}x{}, layout {}{}{tone}{mip_note}, {reads}, {}) in {ms:.1} ms (+{prep_ms:.0} ms layout{})",
                 output.display(),
                 size.0,
                 size.1,
                 layout.label(),
                 if bc1 { " BC1" } else { "" },
-                layout.codebook_reads(),
                 r.name(),
-                if bc1 { " + BC1" } else { "" }
+                if bc1 {
+                    " + BC1"
+                } else if pca.is_some() {
+                    " + PCA fit"
+                } else {
+                    ""
+                }
             );
             Ok(())
         }
