@@ -415,7 +415,8 @@ impl<'a> BtfProgram<'a> {
             to: &to,
             tw: &tw,
             texels,
-            last_texel: texels.len() - 1,
+            // a u32 sum cannot pass u32::MAX: the clamp runs on 32-bit lanes
+            last_texel: (texels.len() - 1).min(u32::MAX as usize) as u32,
             tile_step: cb.tile_h * cb.width,
             tile_w: cb.tile_w,
             cols: cb.tile_cols,
@@ -575,7 +576,7 @@ struct LaneReads<'a, const NC: usize, const NT: usize, const HDR: bool> {
     to: &'a [[u32; LANES]; NT],
     tw: &'a [[f32; LANES]; NT],
     texels: &'a [u64],
-    last_texel: usize,
+    last_texel: u32,
     tile_step: u32,
     tile_w: u32,
     cols: u32,
@@ -606,7 +607,7 @@ impl<const NC: usize, const NT: usize, const HDR: bool> LaneReads<'_, NC, NT, HD
             for t in 0..NT {
                 let mut px = [0u64; LANES];
                 for i in 0..LANES {
-                    px[i] = self.texels[((base[i] + self.to[t][i]) as usize).min(self.last_texel)];
+                    px[i] = self.texels[(base[i].wrapping_add(self.to[t][i])).min(self.last_texel) as usize];
                 }
                 if HDR {
                     let h = |p: u64, s: u32| f32::from_bits(half_to_scaled_f32_bits((p >> s) as u16));
