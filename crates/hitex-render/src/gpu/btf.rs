@@ -3,14 +3,16 @@
 //! BTF, RGBA16F), sampled with
 //! the hardware filter by `shaders/btf.wgsl`.
 
-use super::plumbing::{PipelineScope, UploadScope, UploadedMesh, texture_entry, uniform_buffer, uniform_entry};
+use super::plumbing::{
+    PipelineScope, UploadScope, UploadedMesh, sampled_texture, texture_2d, texture_entry, uniform_buffer,
+    uniform_entry, write_texels,
+};
 use super::{GpuError, GpuRenderer, trusted_module};
 use crate::btf::{BtfFrame, BtfVertex, PreparedBtf};
 use crate::{Frame, RenderError};
 use hitex_core::btf::Layout;
 use hitex_core::btf::layout::Axis;
 use hitex_core::scene::Camera;
-use wgpu::util::DeviceExt;
 
 /// The BTF shader source, before the layout's constants are prepended.
 pub const BTF_WGSL: &str = concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/btf.wgsl"));
@@ -167,54 +169,10 @@ fn codebook_texture(
         None => (wgpu::TextureFormat::Rgba8UnormSrgb, &cb.texels, cb.width * 4, cb.height),
     };
     let size = wgpu::Extent3d { width: cb.width, height: cb.height, depth_or_array_layers: cb.depth };
-    let tex = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("btf codebook"),
-        size,
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: if d3 { wgpu::TextureDimension::D3 } else { wgpu::TextureDimension::D2 },
-        format,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
-    queue.write_texture(
-        wgpu::TexelCopyTextureInfo {
-            texture: &tex,
-            mip_level: 0,
-            origin: wgpu::Origin3d::ZERO,
-            aspect: wgpu::TextureAspect::All,
-        },
-        bytes,
-        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row_bytes), rows_per_image: Some(rows) },
-        size,
-    );
+    let dimension = if d3 { wgpu::TextureDimension::D3 } else { wgpu::TextureDimension::D2 };
+    let tex = sampled_texture(device, "btf codebook", size, dimension, format);
+    write_texels(queue, &tex, wgpu::Origin3d::ZERO, bytes, (row_bytes, rows), size);
     Ok(tex)
-}
-
-/// A sampled 2-D texture of one level holding `bytes`.
-fn texture_2d(
-    device: &wgpu::Device,
-    queue: &wgpu::Queue,
-    label: &str,
-    (width, height): (u32, u32),
-    format: wgpu::TextureFormat,
-    bytes: &[u8],
-) -> wgpu::Texture {
-    device.create_texture_with_data(
-        queue,
-        &wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        },
-        wgpu::util::TextureDataOrder::LayerMajor,
-        bytes,
-    )
 }
 
 /// The index atlas of `scene`: level 0 at the origin, levels 1, 2, … stacked

@@ -18,7 +18,10 @@ use crate::prepare::{AtlasLayout, MAX_ATLAS_LEVELS, MaterialUniform, PreparedSce
 use crate::{Frame, RenderError, check_size};
 use hitex_core::scene::Camera;
 use hitex_core::texture::{ColorSpace, MipPyramid};
-use plumbing::{PipelineScope, UploadScope, mesh_buffers, texture_entry, uniform_buffer, uniform_entry};
+use plumbing::{
+    PipelineScope, UploadScope, mesh_buffers, sampled_texture, texture_entry, uniform_buffer, uniform_entry,
+    write_texels,
+};
 use std::sync::Arc;
 use thiserror::Error;
 use wgpu::util::DeviceExt;
@@ -266,31 +269,16 @@ impl GpuRenderer {
                 layout.height
             )));
         }
-        let tex = self.ctx.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("mip atlas"),
-            size: wgpu::Extent3d { width: layout.width, height: layout.height, depth_or_array_layers: 1 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
+        let size = wgpu::Extent3d { width: layout.width, height: layout.height, depth_or_array_layers: 1 };
+        let tex = sampled_texture(&self.ctx.device, "mip atlas", size, wgpu::TextureDimension::D2, format);
         for (l, img) in pyr.levels().iter().enumerate().take(levels) {
             let o = layout.origins[l];
-            self.ctx.queue.write_texture(
-                wgpu::TexelCopyTextureInfo {
-                    texture: &tex,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d { x: o[0], y: o[1], z: 0 },
-                    aspect: wgpu::TextureAspect::All,
-                },
+            write_texels(
+                &self.ctx.queue,
+                &tex,
+                wgpu::Origin3d { x: o[0], y: o[1], z: 0 },
                 img.bytes(),
-                wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(4 * img.width()),
-                    rows_per_image: Some(img.height()),
-                },
+                (4 * img.width(), img.height()),
                 wgpu::Extent3d { width: img.width(), height: img.height(), depth_or_array_layers: 1 },
             );
         }

@@ -1,7 +1,7 @@
 //! The NURBS pipeline: the paper's knot and control-point textures, a coarse
 //! tessellation generating fragments, `shaders/nurbs.wgsl` evaluating each.
 
-use super::plumbing::{PipelineScope, UploadedMesh, texture_entry, uniform_buffer, uniform_entry};
+use super::plumbing::{PipelineScope, UploadedMesh, texture_2d, texture_entry, uniform_buffer, uniform_entry};
 use super::{GpuError, GpuRenderer, trusted_module};
 use crate::nurbs::{NurbsFrame, NurbsVertex, PreparedNurbs};
 use crate::{Frame, RenderError};
@@ -74,29 +74,7 @@ fn float_texture(
             "{label} texture of {width}x{rows} texels exceeds the adapter's limit of {max}"
         )));
     }
-    let texel = format.block_copy_size(None).unwrap_or(4);
-    let tex = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d { width, height: rows, depth_or_array_layers: 1 },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
-    queue.write_texture(
-        wgpu::TexelCopyTextureInfo {
-            texture: &tex,
-            mip_level: 0,
-            origin: wgpu::Origin3d::ZERO,
-            aspect: wgpu::TextureAspect::All,
-        },
-        bytes,
-        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(texel * width), rows_per_image: Some(rows) },
-        wgpu::Extent3d { width, height: rows, depth_or_array_layers: 1 },
-    );
-    Ok(tex)
+    Ok(texture_2d(device, queue, label, (width, rows), format, bytes))
 }
 
 impl GpuRenderer {

@@ -1,5 +1,6 @@
 //! GPU set-up shared by every program: error scopes, mesh buffers, the
-//! uploaded mesh of a content and the common bind-group layout entries.
+//! uploaded mesh of a content, sampled textures and their uploads, and the
+//! common bind-group layout entries.
 
 use super::GpuError;
 use wgpu::util::DeviceExt;
@@ -150,4 +151,60 @@ pub(crate) fn uniform_buffer<T>(device: &wgpu::Device, label: &str) -> wgpu::Buf
         usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     })
+}
+
+/// A texture that shaders sample and copies fill: one level, one sample.
+pub(crate) fn sampled_texture(
+    device: &wgpu::Device,
+    label: &str,
+    size: wgpu::Extent3d,
+    dimension: wgpu::TextureDimension,
+    format: wgpu::TextureFormat,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    })
+}
+
+/// Copies `bytes` into the box `size` of `tex`'s level 0 at `origin`: rows
+/// of `row_bytes` bytes, `rows` of them an image (block rows for compressed
+/// formats).
+pub(crate) fn write_texels(
+    queue: &wgpu::Queue,
+    tex: &wgpu::Texture,
+    origin: wgpu::Origin3d,
+    bytes: &[u8],
+    (row_bytes, rows): (u32, u32),
+    size: wgpu::Extent3d,
+) {
+    queue.write_texture(
+        wgpu::TexelCopyTextureInfo { texture: tex, mip_level: 0, origin, aspect: wgpu::TextureAspect::All },
+        bytes,
+        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row_bytes), rows_per_image: Some(rows) },
+        size,
+    );
+}
+
+/// A sampled 2-D texture of one level holding `bytes` (an uncompressed
+/// format, rows packed).
+pub(crate) fn texture_2d(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    label: &str,
+    (width, height): (u32, u32),
+    format: wgpu::TextureFormat,
+    bytes: &[u8],
+) -> wgpu::Texture {
+    let size = wgpu::Extent3d { width, height, depth_or_array_layers: 1 };
+    let tex = sampled_texture(device, label, size, wgpu::TextureDimension::D2, format);
+    let row_bytes = format.block_copy_size(None).unwrap_or(4) * width;
+    write_texels(queue, &tex, wgpu::Origin3d::ZERO, bytes, (row_bytes, height), size);
+    tex
 }

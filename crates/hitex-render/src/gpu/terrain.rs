@@ -5,7 +5,7 @@
 //! nothing was drawn). The generic texture's levels are layers of the same
 //! array, kept for as long as the texture does not change.
 
-use super::plumbing::{PipelineScope, mesh_buffers, uniform_buffer};
+use super::plumbing::{PipelineScope, mesh_buffers, sampled_texture, uniform_buffer, write_texels};
 use super::{GpuError, GpuRenderer, trusted_module};
 use crate::terrain::{FlyGround, FlyPages, FlySampler, FlyUniform, FlyVertex, GenericTexture, MAP};
 use crate::{Frame, RenderError};
@@ -200,16 +200,9 @@ impl FlyGpu {
             // of layers: lavapipe read wrong layers of a 114-layer array
             // (measured; 64 and 128 layers read right)
             self.capacity = (need * 2).next_power_of_two().clamp(64, max);
-            self.maps = Some(device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("resident maps"),
-                size: wgpu::Extent3d { width: MAP, height: MAP, depth_or_array_layers: self.capacity },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba8UnormSrgb,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            }));
+            let size = wgpu::Extent3d { width: MAP, height: MAP, depth_or_array_layers: self.capacity };
+            let format = wgpu::TextureFormat::Rgba8UnormSrgb;
+            self.maps = Some(sampled_texture(device, "resident maps", size, wgpu::TextureDimension::D2, format));
             self.layers.clear();
             self.generic = None;
         }
@@ -217,17 +210,8 @@ impl FlyGpu {
             return Err(GpuError::Render("map array missing".into()));
         };
         let upload = |layer: u32, texels: &[u8]| {
-            queue.write_texture(
-                wgpu::TexelCopyTextureInfo {
-                    texture: tex,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d { x: 0, y: 0, z: layer },
-                    aspect: wgpu::TextureAspect::All,
-                },
-                texels,
-                wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(MAP * 4), rows_per_image: Some(MAP) },
-                wgpu::Extent3d { width: MAP, height: MAP, depth_or_array_layers: 1 },
-            );
+            let size = wgpu::Extent3d { width: MAP, height: MAP, depth_or_array_layers: 1 };
+            write_texels(queue, tex, wgpu::Origin3d { x: 0, y: 0, z: layer }, texels, (MAP * 4, MAP), size);
         };
         // the generic texture: the last layers, uploaded when it changes
         let first_generic = self.capacity - glevels;
