@@ -44,6 +44,10 @@ const OVERSAMPLE: usize = 6;
 /// Feature dimensions the clustering reads.
 const CLUSTER_FEATURE_DIMS: usize = 16;
 
+/// Runs of images summed apart (in parallel) and then in order, when a pass
+/// accumulates over every image.
+const SUM_RUNS: usize = 8;
+
 /// What [`fit`] builds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PcaOptions {
@@ -209,13 +213,17 @@ pub fn fit(btf: &Btf, opts: PcaOptions, progress: &(dyn Fn(usize, usize) + Sync)
         );
         z
     };
-    // Y = X Z per cluster: n × width, Z of `width` columns per (dimension, cluster)
+    // Y = X Z per cluster: n × width, Z of `width` columns per (dimension, cluster).
+    // The images are summed in a fixed number of runs, each in image order, and
+    // the runs' sums are added in run order: the result does not depend on how
+    // many threads there are or how the work was stolen.
     let x_z = |z: &[f32], width: usize| -> Vec<f32> {
-        (0..images)
+        let run = images.div_ceil(SUM_RUNS).max(1);
+        let partial: Vec<Vec<f32>> = (0..images.div_ceil(run))
             .into_par_iter()
-            .fold(
-                || (vec![0f32; n * 3], vec![0f32; n * width]),
-                |(mut x, mut y), i| {
+            .map(|r| {
+                let (mut x, mut y) = (vec![0f32; n * 3], vec![0f32; n * width]);
+                for i in r * run..((r + 1) * run).min(images) {
                     centred(i, &mut x);
                     let zi = &z[i * 3 * nc * width..(i + 1) * 3 * nc * width];
                     for (t, &c) in cluster.iter().enumerate() {
@@ -227,11 +235,16 @@ pub fn fit(btf: &Btf, opts: PcaOptions, progress: &(dyn Fn(usize, usize) + Sync)
                             }
                         }
                     }
-                    (x, y)
-                },
-            )
-            .map(|(_, y)| y)
-            .reduce(|| vec![0f32; n * width], |a, b| a.iter().zip(&b).map(|(p, q)| p + q).collect())
+                }
+                y
+            })
+            .collect();
+        let mut runs = partial.into_iter();
+        let mut y = runs.next().unwrap_or_else(|| vec![0f32; n * width]);
+        for p in runs {
+            y.iter_mut().zip(&p).for_each(|(a, b)| *a += b);
+        }
+        y
     };
     // randomised subspace iteration from a random start in texel space
     let mut y: Vec<f32> = (0..n * m).map(|e| noise(0x5ca1_ab1e, (e / m) as u64, (e % m) as u64)).collect();
@@ -507,6 +520,33 @@ mod tests {
         // the 8-bit rounding of the source bounds the error (±½ step: 51 dB and above)
         assert!(pf > 48.0, "3 components of a rank-3 BTF: {pf} dB");
         assert!(ps < pf - 6.0, "1 component of a rank-3 BTF: {ps} dB against {pf}");
+    }
+
+    #[test]
+    fn the_fit_is_the_same_bits_on_any_number_of_threads() {
+        // 12 × 12 images: many more than the runs the passes sum apart
+        let btf = low_rank(4, 8);
+        let opts = PcaOptions { clusters: 3, components: 4 };
+        let on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let p = pool.install(|| fit(&btf, opts, &|_, _| {}).unwrap());
+            let mut all: Vec<u16> = Vec::new();
+            for y in 0..8 {
+                for x in 0..8 {
+                    all.push(p.cluster_of(x, y) as u16);
+                    all.extend_from_slice(p.coefs_of(x, y));
+                }
+            }
+            all.extend_from_slice(p.basis_halves());
+            all
+        };
+        let one = on(1);
+        for threads in [2, 3] {
+            let other = on(threads);
+            assert_eq!(one.len(), other.len());
+            let differ = one.iter().zip(&other).filter(|(a, b)| a != b).count();
+            assert_eq!(differ, 0, "{differ} of {} halves differ between 1 and {threads} threads", one.len());
+        }
     }
 
     #[test]
