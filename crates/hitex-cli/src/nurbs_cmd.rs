@@ -952,7 +952,7 @@ fn parse_sections(s: &str) -> Result<(Vec3, f32), String> {
 /// A pull direction: `X,Y,Z` (not zero, finite) or an axis name.
 fn parse_pull(s: &str) -> Result<Vec3, String> {
     if !s.contains(',') {
-        return match UpAxis::parse(s)? {
+        return match UpAxis::parse(s).map_err(|e| e.to_string())? {
             UpAxis::Auto => Err("give X,Y,Z or an axis (x, y, z, -x, -y, -z)".into()),
             a => Ok(a.direction()),
         };

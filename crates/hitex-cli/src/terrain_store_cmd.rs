@@ -511,7 +511,7 @@ fn dem_file(s: StoredDem) -> Result<(String, Vec<u8>), CliError> {
         }
         StoredDem::Write(w) => {
             let bytes = hitex_io::geotiff::dem_geotiff_bytes(&w.0, &w.1)
-                .map_err(|m| CliError::Input(format!("the DEM cannot be written as a GeoTIFF: {m}")))?;
+                .map_err(|e| CliError::Input(format!("the DEM cannot be written as a GeoTIFF: {e}")))?;
             ("dem.tif".to_string(), bytes)
         }
     })
@@ -688,8 +688,7 @@ fn load_path(path: &Path) -> Result<FlightPath, CliError> {
 
 /// The resident-map cache of a store, loading its maps (files or MBTiles rows).
 pub fn open_cache(store: Arc<Store>, budget: usize) -> Result<ResidentMaps, CliError> {
-    let loader: Arc<hitex_core::residency::Loader> =
-        Arc::new(move |k: MapKey| store.read_tile(k.z, k.x, k.y).map_err(|e| e.to_string()));
+    let loader: Arc<hitex_core::residency::Loader> = Arc::new(move |k: MapKey| Ok(store.read_tile(k.z, k.x, k.y)?));
     ResidentMaps::new(budget, loader).map_err(|e| CliError::Input(e.to_string()))
 }
 

@@ -33,8 +33,12 @@ impl MapKey {
     }
 }
 
-/// Loads one map: RGBA8 texels, or a message.
-pub type Loader = dyn Fn(MapKey) -> Result<Vec<u8>, String> + Send + Sync;
+/// Why a map could not be loaded: the loader's own error, whatever its type
+/// (the cache logs it, by its `Display`, and lets a coarser map stand in).
+pub type LoadError = Box<dyn std::error::Error + Send + Sync>;
+
+/// Loads one map: RGBA8 texels, or why not.
+pub type Loader = dyn Fn(MapKey) -> Result<Vec<u8>, LoadError> + Send + Sync;
 
 /// What one frame asked of the cache.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -111,7 +115,7 @@ pub fn active_maps(
     out
 }
 
-type Done = (MapKey, Result<Vec<u8>, String>);
+type Done = (MapKey, Result<Vec<u8>, LoadError>);
 
 /// The resident-map cache.
 pub struct ResidentMaps {

@@ -65,7 +65,7 @@ pub fn parse_elevation(bytes: &[u8], path: &Path) -> Result<GeoRaster, IoError> 
         "tif" | "tiff" => crate::geotiff::parse_geotiff(std::io::Cursor::new(bytes), bytes.len() as u64, path),
         "hgt" => hgt(bytes, name).map_err(fmt),
         "asc" => ascii_grid(&String::from_utf8_lossy(bytes)).map_err(fmt),
-        "npy" => parse_npy(bytes).map(|(w, h, data)| plain(w, h, data)).map_err(fmt),
+        "npy" => npy(bytes).map(|(w, h, data)| plain(w, h, data)).map_err(fmt),
         "npz" => npz(bytes).map_err(fmt),
         _ => Err(fmt("unknown elevation format (expected .tif, .hgt, .asc, .npy or .npz)".into())),
     }
@@ -208,7 +208,11 @@ fn ascii_grid(text: &str) -> Result<GeoRaster, String> {
 
 /// A numpy `.npy` array of one or two dimensions (i1/i2/i4/u1/u2/f4/f8, either
 /// byte order, C or Fortran order) as (width, height, samples).
-pub fn parse_npy(bytes: &[u8]) -> Result<(u32, u32, Vec<f32>), String> {
+pub fn parse_npy(bytes: &[u8]) -> Result<(u32, u32, Vec<f32>), DataError> {
+    npy(bytes).map_err(DataError::from)
+}
+
+fn npy(bytes: &[u8]) -> Result<(u32, u32, Vec<f32>), String> {
     if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
         return Err("not a .npy array (missing \\x93NUMPY magic)".into());
     }
@@ -315,7 +319,7 @@ fn npz(bytes: &[u8]) -> Result<GeoRaster, String> {
         if buf.len() as u64 != claim {
             return Err(format!("entry {name}: {} bytes inflated, {claim} declared", buf.len()));
         }
-        let arr = parse_npy(&buf).map_err(|e| format!("entry {name}: {e}"))?;
+        let arr = npy(&buf).map_err(|e| format!("entry {name}: {e}"))?;
         arrays.push((name, arr));
     }
     let scalar = |k: &str| arrays.iter().find(|(n, a)| n == k && a.0 * a.1 == 1).map(|(_, a)| a.2[0] as f64);
@@ -387,11 +391,11 @@ mod tests {
         assert_eq!((w, h, d), (3, 2, vec![1.0, -2.0, 3.0, 4.0, 5.0, 6.0]));
         let be: Vec<u8> = [1.5f32, 2.5].iter().flat_map(|v| v.to_be_bytes()).collect();
         assert_eq!(parse_npy(&npy(">f4", "(2,)", &be)).unwrap().2, vec![1.5, 2.5]);
-        assert!(parse_npy(b"PK\x03\x04").unwrap_err().contains("magic"));
-        assert!(parse_npy(&npy("<i2", "(2, 3)", &body[..4])).unwrap_err().contains("data bytes"));
-        assert!(parse_npy(&npy("<c8", "(1,)", &[0; 8])).unwrap_err().contains("not supported"));
-        assert!(parse_npy(&npy("<i2", "(2, 3, 4)", &body)).unwrap_err().contains("3-dimensional"));
-        assert!(parse_npy(&npy("<i2", "(99999999, 99999999)", &body)).unwrap_err().contains("limit"));
+        assert!(parse_npy(b"PK\x03\x04").unwrap_err().message.contains("magic"));
+        assert!(parse_npy(&npy("<i2", "(2, 3)", &body[..4])).unwrap_err().message.contains("data bytes"));
+        assert!(parse_npy(&npy("<c8", "(1,)", &[0; 8])).unwrap_err().message.contains("not supported"));
+        assert!(parse_npy(&npy("<i2", "(2, 3, 4)", &body)).unwrap_err().message.contains("3-dimensional"));
+        assert!(parse_npy(&npy("<i2", "(99999999, 99999999)", &body)).unwrap_err().message.contains("limit"));
     }
 
     #[test]

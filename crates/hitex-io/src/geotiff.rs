@@ -311,12 +311,16 @@ fn user_defined_keys(def: &str) -> Option<(Vec<ShortKey>, Vec<DoubleKey>)> {
 /// or, for a local transverse Mercator, as user-defined GeoKeys; nodata as
 /// GDAL_NODATA.
 pub fn write_dem_geotiff(path: &Path, r: &GeoRaster, crs: &crate::crs::Crs) -> Result<(), IoError> {
-    let bytes = dem_geotiff_bytes(r, crs).map_err(|m| IoError::Write { path: path.to_path_buf(), message: m })?;
+    let bytes = dem_geotiff(r, crs).map_err(|m| IoError::Write { path: path.to_path_buf(), message: m })?;
     crate::write_atomic(path, &bytes)
 }
 
 /// The GeoTIFF file [`write_dem_geotiff`] writes, in memory.
-pub fn dem_geotiff_bytes(r: &GeoRaster, crs: &crate::crs::Crs) -> Result<Vec<u8>, String> {
+pub fn dem_geotiff_bytes(r: &GeoRaster, crs: &crate::crs::Crs) -> Result<Vec<u8>, crate::DataError> {
+    dem_geotiff(r, crs).map_err(crate::DataError::from)
+}
+
+fn dem_geotiff(r: &GeoRaster, crs: &crate::crs::Crs) -> Result<Vec<u8>, String> {
     use tiff::encoder::{TiffEncoder, colortype::Gray32Float};
     let werr = |m: String| m;
     let mut keys: Vec<u16> = Vec::new();

@@ -642,7 +642,7 @@ fn build_level(
     jobs.par_iter().try_for_each(|&(x, y)| -> Result<(), IoError> {
         let rgba = if finest { finest_tile(src, meta.offset, x, y)? } else { parent_tile(meta, sink, z, x, y)? };
         let png = encode_png(&rgba)
-            .map_err(|m| IoError::Write { path: meta.tile_path(Path::new(""), z, x, y), message: m })?;
+            .map_err(|e| IoError::Write { path: meta.tile_path(Path::new(""), z, x, y), message: e.message })?;
         sink.put(meta, z, x, y, &png)?;
         tick();
         Ok(())
@@ -650,12 +650,12 @@ fn build_level(
 }
 
 /// The PNG file of a map's RGBA8 texels.
-pub fn encode_png(rgba: &[u8]) -> Result<Vec<u8>, String> {
+pub fn encode_png(rgba: &[u8]) -> Result<Vec<u8>, crate::DataError> {
     use image::ImageEncoder;
     let mut buf = Vec::new();
     image::codecs::png::PngEncoder::new(&mut buf)
         .write_image(rgba, TILE, TILE, image::ExtendedColorType::Rgba8)
-        .map_err(|e| e.to_string())?;
+        .map_err(|e| crate::DataError::from(format!("the map's PNG: {e}")))?;
     Ok(buf)
 }
 

@@ -84,7 +84,7 @@ pub fn binary_kind(head: &[u8]) -> Option<&'static str> {
 /// Data that cannot be read or used, with no file to name: bytes or text
 /// handed to a reader (`parse_*`; the `load_*` functions name the file as
 /// well, [`IoError::Format`] through [`DataError::in_file`]), or a raster
-/// that cannot be reprojected or tiled as asked.
+/// that cannot be reprojected, tiled or encoded as asked.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 #[error("{message}")]
 pub struct DataError {

@@ -6,8 +6,8 @@
 //! trimming curves from `vp u v [w]`. Errors name the file and line; sizes
 //! are checked against the vertices present before anything is built.
 
-use crate::IoError;
 use crate::iges::{IgesSurface, sample_curve_2d};
+use crate::{DataError, IoError};
 use hitex_core::nurbs::NurbsSurface;
 use std::path::Path;
 
@@ -55,7 +55,7 @@ pub fn load_obj_freeform_warned(path: &Path) -> Result<(Vec<IgesSurface>, Vec<St
     crate::limits::check_text_file(crate::limits::TextKind::ObjFreeform, meta.len()).map_err(|e| fmt(e.to_string()))?;
     let bytes = std::fs::read(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
     let text = String::from_utf8_lossy(&bytes);
-    let surfaces = parse_obj_freeform(&text).map_err(fmt)?;
+    let surfaces = obj_freeform(&text).map_err(fmt)?;
     Ok((surfaces, obj_freeform_warnings(&text)))
 }
 
@@ -87,7 +87,11 @@ pub fn obj_freeform_warnings(text: &str) -> Vec<String> {
 }
 
 /// Parses OBJ text; errors carry the line number.
-pub fn parse_obj_freeform(text: &str) -> Result<Vec<IgesSurface>, String> {
+pub fn parse_obj_freeform(text: &str) -> Result<Vec<IgesSurface>, DataError> {
+    obj_freeform(text).map_err(DataError::from)
+}
+
+fn obj_freeform(text: &str) -> Result<Vec<IgesSurface>, String> {
     let mut v: Vec<[f64; 4]> = Vec::new();
     let mut vp: Vec<[f64; 3]> = Vec::new();
     let mut rational = false;
@@ -432,7 +436,7 @@ cstype rat bspline\ndeg 3 3\nsurf 0 1 0 1 1 2 3 4 5 6 7 8 9 10 11 12 13 14 \\\n 
         ];
         for (text, needle) in cases {
             let e = parse_obj_freeform(text).unwrap_err();
-            assert!(e.contains(needle), "{text:?}: {e}");
+            assert!(e.message.contains(needle), "{text:?}: {e}");
         }
     }
 }

@@ -10,7 +10,7 @@
 //! lines, three a facet). Facet normals are ignored: the side is the
 //! vertices' order. Every error names the file and the triangle or line.
 
-use crate::IoError;
+use crate::{DataError, IoError};
 use std::path::Path;
 
 /// A triangle's three corners.
@@ -31,11 +31,15 @@ pub fn load_stl(path: &Path) -> Result<Vec<Triangle>, IoError> {
     crate::limits::check_cap("reading this STL file", Some(meta.len().saturating_mul(HELD) / RECORD))
         .map_err(|e| fmt(e.to_string()))?;
     let bytes = std::fs::read(path).map_err(read)?;
-    parse_stl(&bytes).map_err(fmt)
+    stl(&bytes).map_err(fmt)
 }
 
 /// Parses STL bytes (binary or ASCII).
-pub fn parse_stl(bytes: &[u8]) -> Result<Vec<Triangle>, String> {
+pub fn parse_stl(bytes: &[u8]) -> Result<Vec<Triangle>, DataError> {
+    stl(bytes).map_err(DataError::from)
+}
+
+fn stl(bytes: &[u8]) -> Result<Vec<Triangle>, String> {
     let claimed = bytes.get(80..84).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]) as u64);
     let len = bytes.len() as u64;
     let exact_binary = claimed.is_some_and(|n| 84 + n * RECORD == len);
@@ -227,15 +231,15 @@ mod tests {
         ];
         for (bytes, want) in cases {
             let e = parse_stl(&bytes).expect_err(want);
-            assert!(e.contains(want), "{e} lacks '{want}'");
+            assert!(e.message.contains(want), "{e} lacks '{want}'");
         }
         // a count claiming more than the cap is refused before allocating
         let mut huge = bin.clone();
         huge[80..84].copy_from_slice(&u32::MAX.to_le_bytes());
-        assert!(parse_stl(&huge).expect_err("huge").contains("claims 4294967295 triangles"));
+        assert!(parse_stl(&huge).expect_err("huge").message.contains("claims 4294967295 triangles"));
         // non-finite binary vertices
         let mut nan = bin;
         nan[84 + 12..84 + 16].copy_from_slice(&f32::NAN.to_le_bytes());
-        assert!(parse_stl(&nan).expect_err("nan").contains("triangle 0: a vertex is not finite"));
+        assert!(parse_stl(&nan).expect_err("nan").message.contains("triangle 0: a vertex is not finite"));
     }
 }

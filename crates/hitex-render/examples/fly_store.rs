@@ -29,7 +29,7 @@ pub fn run(out: &Path, side: u32, frames: u32, (w, h): (u32, u32)) -> Result<Str
     // 2. the resident maps: at most 200, loaded from the store in the background
     let root = store.clone();
     let m = meta.clone();
-    let loader: Arc<Loader> = Arc::new(move |k: MapKey| read_tile(&m, &root, k.z, k.x, k.y).map_err(|e| e.to_string()));
+    let loader: Arc<Loader> = Arc::new(move |k: MapKey| Ok(read_tile(&m, &root, k.z, k.x, k.y)?));
     let mut cache = ResidentMaps::new(200, loader)?;
     // maps per side of each level's window (eq. (7)) for this field of view and width
     let fov = 45.0;

@@ -588,7 +588,7 @@ pub enum UpAxis {
 
 impl UpAxis {
     /// Parses `auto`, `x`, `y`, `z`, `+z`, `-y`, …
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> Result<Self, crate::RenderError> {
         let t = s.trim().to_ascii_lowercase();
         if t == "auto" {
             return Ok(Self::Auto);
@@ -601,7 +601,11 @@ impl UpAxis {
             "x" => 0,
             "y" => 1,
             "z" => 2,
-            _ => return Err(format!("'{s}' is not an axis: give auto, x, y, z, -x, -y or -z")),
+            _ => {
+                return Err(crate::RenderError::Invalid(format!(
+                    "'{s}' is not an axis: give auto, x, y, z, -x, -y or -z"
+                )));
+            }
         };
         Ok(Self::Axis(k, neg))
     }

@@ -129,7 +129,7 @@ static FORCED: AtomicBool = AtomicBool::new(false);
 
 /// The level `HITEX_SIMD` asks for: `Ok(None)` when unset or `auto`, an
 /// error naming the levels when it names none or one this processor lacks.
-pub fn level_from_env() -> Result<Option<SimdLevel>, String> {
+pub fn level_from_env() -> Result<Option<SimdLevel>, crate::RenderError> {
     let Ok(v) = std::env::var("HITEX_SIMD") else { return Ok(None) };
     if v.trim().is_empty() || v.trim().eq_ignore_ascii_case("auto") {
         return Ok(None);
@@ -137,8 +137,14 @@ pub fn level_from_env() -> Result<Option<SimdLevel>, String> {
     let names: Vec<&str> = SimdLevel::available_levels().iter().map(|l| l.name()).collect();
     match SimdLevel::from_name(&v) {
         Some(l) if l.available() => Ok(Some(l)),
-        Some(l) => Err(format!("HITEX_SIMD={v}: this processor lacks {l}; it runs {}", names.join(", "))),
-        None => Err(format!("HITEX_SIMD={v} names no level; this processor runs {} (or auto)", names.join(", "))),
+        Some(l) => Err(crate::RenderError::Invalid(format!(
+            "HITEX_SIMD={v}: this processor lacks {l}; it runs {}",
+            names.join(", ")
+        ))),
+        None => Err(crate::RenderError::Invalid(format!(
+            "HITEX_SIMD={v} names no level; this processor runs {} (or auto)",
+            names.join(", ")
+        ))),
     }
 }
 
