@@ -95,15 +95,23 @@ fn the_gpu_choice_reports_a_lost_device_instead_of_falling_back() {
     assert!(any.take_notices().is_empty());
 }
 
+/// The first adapter and a device opened on it, as an application opens
+/// them, with the adapter's limits as `limits` changes them.
+fn own_device(limits: impl FnOnce(wgpu::Limits) -> wgpu::Limits) -> (wgpu::Adapter, wgpu::Device, wgpu::Queue) {
+    let instance = hitex_render::gpu::device::instance();
+    let adapter = hitex_render::gpu::device::adapters(&instance).into_iter().next().expect("an adapter");
+    let desc = wgpu::DeviceDescriptor { required_limits: limits(adapter.limits()), ..Default::default() };
+    let (device, queue) = pollster::block_on(adapter.request_device(&desc)).unwrap();
+    (adapter, device, queue)
+}
+
 #[test]
 fn a_renderer_on_the_callers_own_device_matches_the_cpu() {
     if !have_gpu("a_renderer_on_the_callers_own_device_matches_the_cpu") {
         return;
     }
     // the application opens its adapter and device itself
-    let instance = hitex_render::gpu::device::instance();
-    let adapter = hitex_render::gpu::device::adapters(&instance).into_iter().next().expect("an adapter");
-    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor::default())).unwrap();
+    let (adapter, device, queue) = own_device(|l| l);
     let mut gpu = GpuRenderer::on_device(adapter, device.clone(), queue).unwrap();
     let p = teapot();
     let job = Job::Nurbs { model: &p, camera: p.camera };
@@ -118,6 +126,25 @@ fn a_renderer_on_the_callers_own_device_matches_the_cpu() {
         mapped_at_creation: false,
     });
     drop(buf);
+}
+
+#[test]
+fn data_textures_beyond_the_devices_limit_are_refused_by_name() {
+    if !have_gpu("data_textures_beyond_the_devices_limit_are_refused_by_name") {
+        return;
+    }
+    // a device opened with a 16-texel limit per side: the 16² target fits,
+    // the teapot's data textures (a row per patch, 32 patches) do not
+    let (adapter, device, queue) = own_device(|l| wgpu::Limits { max_texture_dimension_2d: 16, ..l });
+    let mut gpu = GpuRenderer::on_device(adapter, device, queue).unwrap();
+    let p = teapot();
+    match gpu.render(&Job::Nurbs { model: &p, camera: p.camera }, 16, 16) {
+        Err(RenderError::Gpu(GpuError::Render(m))) => {
+            assert!(m.contains("texture needs") && m.contains("the device allows 16 per side"), "{m}")
+        }
+        Err(e) => panic!("expected the texture's refusal, got {e}"),
+        Ok(_) => panic!("textures beyond the device's 16 texels a side were accepted"),
+    }
 }
 
 #[test]

@@ -4,7 +4,7 @@
 //! the hardware filter by `shaders/btf.wgsl`.
 
 use super::plumbing::{
-    PipelineScope, UploadScope, UploadedMesh, sampled_texture, texture_2d, texture_entry, uniform_buffer,
+    PipelineScope, UploadScope, UploadedMesh, check_2d, sampled_texture, texture_2d, texture_entry, uniform_buffer,
     uniform_entry, write_texels,
 };
 use super::{GpuError, GpuRenderer, trusted_module};
@@ -132,7 +132,7 @@ fn codebook_texture(
     let max = if d3 { limits.max_texture_dimension_3d } else { limits.max_texture_dimension_2d };
     if cb.width > max || cb.height > max || cb.depth > max {
         return Err(GpuError::Render(format!(
-            "codebook layout {} needs {}x{}x{} texels; the adapter allows {max} per side",
+            "codebook layout {} needs {}x{}x{} texels; the device allows {max} per side",
             cb.layout.label(),
             cb.width,
             cb.height,
@@ -220,13 +220,7 @@ impl GpuRenderer {
             // column to its right: one atlas read at texture level 0 (btf.wgsl's
             // index_level_rect places the levels the same way)
             let (atlas_w, atlas_h, texels) = index_atlas(scene);
-            let max = device.limits().max_texture_dimension_2d;
-            if atlas_w > max || atlas_h > max {
-                return Err(GpuError::Render(format!(
-                    "the index map with its MIP levels needs {atlas_w}x{atlas_h} texels; the adapter allows {max} per side"
-                ))
-                .into());
-            }
+            check_2d(device, "the index map with its MIP levels", (atlas_w, atlas_h))?;
             let index_tex = texture_2d(
                 device,
                 queue,
@@ -234,7 +228,7 @@ impl GpuRenderer {
                 (atlas_w, atlas_h),
                 wgpu::TextureFormat::Rg16Uint,
                 bytemuck::cast_slice(&texels),
-            );
+            )?;
             let repeat_depth = layout.spec().depth.is_some_and(|a| matches!(a, Axis::PhiC | Axis::PhiL));
             let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
                 label: Some("btf codebook"),
@@ -251,12 +245,7 @@ impl GpuRenderer {
                 Some(p) => (p.texels_per * p.sample_w, p.sample_h, p.gpu.as_slice()),
                 None => (1, 1, &[0u16; 4][..]),
             };
-            if pca_w > max || pca_h > max {
-                return Err(GpuError::Render(format!(
-                    "the PCA coefficients need {pca_w}x{pca_h} texels; the adapter allows {max} per side"
-                ))
-                .into());
-            }
+            check_2d(device, "the PCA coefficients", (pca_w, pca_h))?;
             let pca_tex = texture_2d(
                 device,
                 queue,
@@ -264,7 +253,7 @@ impl GpuRenderer {
                 (pca_w, pca_h),
                 wgpu::TextureFormat::Rgba16Float,
                 bytemuck::cast_slice(pca_halves),
-            );
+            )?;
             let pca_view = pca_tex.create_view(&Default::default());
             let cb_view = codebook.create_view(&Default::default());
             let idx_view = index_tex.create_view(&Default::default());

@@ -19,7 +19,7 @@ use crate::{Frame, RenderError, check_size};
 use hitex_core::scene::Camera;
 use hitex_core::texture::{ColorSpace, MipPyramid};
 use plumbing::{
-    PipelineScope, UploadScope, mesh_buffers, sampled_texture, texture_entry, uniform_buffer, uniform_entry,
+    PipelineScope, UploadScope, check_2d, mesh_buffers, sampled_texture, texture_entry, uniform_buffer, uniform_entry,
     write_texels,
 };
 use std::sync::Arc;
@@ -259,16 +259,11 @@ impl GpuRenderer {
         };
         let levels = pyr.level_count().min(MAX_ATLAS_LEVELS);
         let layout = AtlasLayout::new(pyr.width(), pyr.height(), levels);
-        let max = self.ctx.device.limits().max_texture_dimension_2d;
-        if layout.width > max || layout.height > max {
-            return Err(GpuError::Render(format!(
-                "a {}x{} texture needs a {}x{} MIP atlas, beyond the adapter's limit of {max}",
-                pyr.width(),
-                pyr.height(),
-                layout.width,
-                layout.height
-            )));
-        }
+        check_2d(
+            &self.ctx.device,
+            &format!("the MIP atlas of a {}x{} texture", pyr.width(), pyr.height()),
+            (layout.width, layout.height),
+        )?;
         let size = wgpu::Extent3d { width: layout.width, height: layout.height, depth_or_array_layers: 1 };
         let tex = sampled_texture(&self.ctx.device, "mip atlas", size, wgpu::TextureDimension::D2, format);
         for (l, img) in pyr.levels().iter().enumerate().take(levels) {

@@ -68,13 +68,7 @@ fn float_texture(
     rows: u32,
     bytes: &[u8],
 ) -> Result<wgpu::Texture, GpuError> {
-    let max = device.limits().max_texture_dimension_2d;
-    if width > max || rows > max {
-        return Err(GpuError::Render(format!(
-            "{label} texture of {width}x{rows} texels exceeds the adapter's limit of {max}"
-        )));
-    }
-    Ok(texture_2d(device, queue, label, (width, rows), format, bytes))
+    texture_2d(device, queue, label, (width, rows), format, bytes)
 }
 
 impl GpuRenderer {

@@ -192,8 +192,20 @@ pub(crate) fn write_texels(
     );
 }
 
+/// Refuses a 2-D texture of `width` × `height` texels beyond the device's
+/// limit per side, naming `what` needs it.
+pub(crate) fn check_2d(device: &wgpu::Device, what: &str, (width, height): (u32, u32)) -> Result<(), GpuError> {
+    let max = device.limits().max_texture_dimension_2d;
+    if width > max || height > max {
+        return Err(GpuError::Render(format!(
+            "{what} needs {width}x{height} texels; the device allows {max} per side"
+        )));
+    }
+    Ok(())
+}
+
 /// A sampled 2-D texture of one level holding `bytes` (an uncompressed
-/// format, rows packed).
+/// format, rows packed), refused ([`check_2d`]) beyond the device's limit.
 pub(crate) fn texture_2d(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
@@ -201,10 +213,11 @@ pub(crate) fn texture_2d(
     (width, height): (u32, u32),
     format: wgpu::TextureFormat,
     bytes: &[u8],
-) -> wgpu::Texture {
+) -> Result<wgpu::Texture, GpuError> {
+    check_2d(device, &format!("the {label} texture"), (width, height))?;
     let size = wgpu::Extent3d { width, height, depth_or_array_layers: 1 };
     let tex = sampled_texture(device, label, size, wgpu::TextureDimension::D2, format);
     let row_bytes = format.block_copy_size(None).unwrap_or(4) * width;
     write_texels(queue, &tex, wgpu::Origin3d::ZERO, bytes, (row_bytes, height), size);
-    tex
+    Ok(tex)
 }
