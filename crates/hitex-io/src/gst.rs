@@ -655,7 +655,7 @@ pub fn encode_png(rgba: &[u8]) -> Result<Vec<u8>, crate::DataError> {
     let mut buf = Vec::new();
     image::codecs::png::PngEncoder::new(&mut buf)
         .write_image(rgba, TILE, TILE, image::ExtendedColorType::Rgba8)
-        .map_err(|e| crate::DataError::from(format!("the map's PNG: {e}")))?;
+        .map_err(|e| crate::DataError::from(e.to_string()))?;
     Ok(buf)
 }
 

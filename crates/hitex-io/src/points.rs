@@ -4,7 +4,7 @@
 //! comment), or the vertices of a PLY file ([`crate::ply`]). Every error
 //! names the file and the point or line.
 
-use crate::IoError;
+use crate::{DataError, IoError};
 use std::path::Path;
 
 /// Largest point file read, in bytes.
@@ -33,12 +33,15 @@ pub fn load_points(path: &Path) -> Result<Vec<[f64; 3]>, IoError> {
         });
     }
     let json = path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    parse_points(&String::from_utf8_lossy(&bytes), json)
-        .map_err(|message| IoError::Format { path: path.to_path_buf(), message })
+    parse_points(&String::from_utf8_lossy(&bytes), json).map_err(|e| e.in_file(path))
 }
 
 /// Parses point text: JSON when `json`, otherwise XYZ.
-pub fn parse_points(text: &str, json: bool) -> Result<Vec<[f64; 3]>, String> {
+pub fn parse_points(text: &str, json: bool) -> Result<Vec<[f64; 3]>, DataError> {
+    points(text, json).map_err(DataError::from)
+}
+
+fn points(text: &str, json: bool) -> Result<Vec<[f64; 3]>, String> {
     let pts = if json { parse_json(text)? } else { parse_xyz(text)? };
     if pts.is_empty() {
         return Err("no points".into());
@@ -114,7 +117,7 @@ mod tests {
             ("# only a comment\n", false, "no points"),
         ] {
             let e = parse_points(text, json).unwrap_err();
-            assert!(e.contains(want), "{text}: {e}");
+            assert!(e.message.contains(want), "{text}: {e}");
         }
     }
 
