@@ -111,7 +111,7 @@ fn a_renderer_on_the_callers_own_device_matches_the_cpu() {
         return;
     }
     // the application opens its adapter and device itself
-    let (adapter, device, queue) = own_device(|l| l);
+    let (adapter, device, queue) = own_device(|_| wgpu::Limits::default());
     let mut gpu = GpuRenderer::on_device(adapter, device.clone(), queue).unwrap();
     let p = teapot();
     let job = Job::Nurbs { model: &p, camera: p.camera };

@@ -5,7 +5,7 @@
 //! nothing was drawn). The generic texture's levels are layers of the same
 //! array, kept for as long as the texture does not change.
 
-use super::plumbing::{PipelineScope, mesh_buffers, sampled_texture, uniform_buffer, write_texels};
+use super::plumbing::{PipelineScope, check_2d, mesh_buffers, sampled_texture, uniform_buffer, write_texels};
 use super::{GpuError, GpuRenderer, trusted_module};
 use crate::terrain::{FlyGround, FlyPages, FlySampler, FlyUniform, FlyVertex, GenericTexture, MAP};
 use crate::{Frame, RenderError};
@@ -192,14 +192,16 @@ impl FlyGpu {
         let need = pages.maps.len() as u32 + glevels;
         let max = device.limits().max_texture_array_layers;
         if need > max {
-            return Err(GpuError::Render(format!("{need} resident maps in one frame; the adapter holds {max} layers")));
+            return Err(GpuError::Render(format!("{need} resident maps in one frame; the device holds {max} layers")));
         }
         let fresh = self.maps.is_none() || need > self.capacity;
         if fresh {
             // room for this frame's maps and as many again, in a power of two
             // of layers: lavapipe read wrong layers of a 114-layer array
             // (measured; 64 and 128 layers read right)
-            self.capacity = (need * 2).next_power_of_two().clamp(64, max);
+            // (a caller's device may allow fewer than 64)
+            self.capacity = (need * 2).next_power_of_two().max(64).min(max);
+            check_2d(device, "the resident maps", (MAP, MAP))?;
             let size = wgpu::Extent3d { width: MAP, height: MAP, depth_or_array_layers: self.capacity };
             let format = wgpu::TextureFormat::Rgba8UnormSrgb;
             self.maps = Some(sampled_texture(device, "resident maps", size, wgpu::TextureDimension::D2, format));
