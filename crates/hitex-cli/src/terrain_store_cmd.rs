@@ -585,7 +585,8 @@ fn build_mbtiles_file(
 /// Arguments of `hitex terrain fly`.
 #[derive(Args)]
 pub struct FlyArgs {
-    /// The store (built by `hitex terrain build`).
+    /// The store: a folder or an MBTiles file `hitex terrain build` wrote, or a raster MBTiles
+    /// file made by another tool (its imagery over flat ground).
     pub store: PathBuf,
     /// Flight path TOML: `[[key]]` tables with t, x, y (fractions of the extent), altitude (m above
     /// the datum), pitch (degrees below the horizon), heading (degrees from north); default: an orbit.
@@ -770,6 +771,15 @@ pub fn fly(a: FlyArgs) -> Result<(), CliError> {
     }
     let store = Arc::new(Store::open(&a.store)?);
     let meta = store.meta.clone();
+    if store.is_foreign() {
+        say!(
+            "{}: {}: its imagery, zooms {} to {}, over flat ground",
+            a.store.display(),
+            meta.source,
+            meta.zoom(0),
+            meta.zoom(meta.levels - 1)
+        );
+    }
     hitex_io::create_output_dir(&a.output)?;
     remove_stale_frames(&a.output, a.frames)?;
     let (w, h) = a.size;

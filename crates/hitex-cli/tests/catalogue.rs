@@ -441,12 +441,25 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
         rusqlite::Connection::open(&p).unwrap().execute_batch(sql).unwrap();
         s(&p)
     };
-    let other = edited("other-tool.mbtiles", "DELETE FROM metadata WHERE name = 'hitex';");
-    v.push(c(
-        "MBTiles store",
-        "made by another tool (no hitex description)",
-        &["terrain", "fly", &other, "-o", &s(&d.join("frames"))],
-    ));
+    // another tool's files (no hitex description) hitex cannot fly over
+    let foreign = "DELETE FROM metadata WHERE name = 'hitex'; DROP TABLE hitex_files;";
+    for (name, sql, what) in [
+        ("vector.mbtiles", "UPDATE metadata SET value = 'pbf' WHERE name = 'format';", "vector tiles (format pbf)"),
+        ("webp.mbtiles", "UPDATE metadata SET value = 'webp' WHERE name = 'format';", "WebP tiles"),
+        (
+            "bounds.mbtiles",
+            "UPDATE metadata SET value = '-35,-8' WHERE name = 'bounds';",
+            "a bounds row of two numbers",
+        ),
+        (
+            "wide.mbtiles",
+            "UPDATE metadata SET value = '-40,-12,-30,-2' WHERE name = 'bounds'; DELETE FROM tiles WHERE zoom_level < 13;",
+            "bounds of 10° × 10° over its zoom-13 tiles only",
+        ),
+    ] {
+        let p = edited(name, &format!("{foreign} {sql}"));
+        v.push(c("MBTiles by another tool", what, &["terrain", "fly", &p, "-o", &s(&d.join("frames"))]));
+    }
     let holes = edited("holes.mbtiles", "DELETE FROM tiles WHERE zoom_level = 11;");
     v.push(c("MBTiles store", "its level-0 tile missing", &["terrain", "fly", &holes, "-o", &s(&d.join("frames"))]));
     let big = edited("big.mbtiles", "UPDATE tiles SET tile_data = zeroblob(5000000) WHERE zoom_level = 11;");

@@ -362,16 +362,18 @@ fn olinda_as_web_mercator_tiles_flies_like_the_local_store() {
         format!("[[key]]\nt = 0\nx = {x}\ny = {y}\naltitude = {altitude}\npitch = {pitch}\nheading = {heading}\n")
     };
     let mut n = 0;
-    let mut fly = |store: &std::path::Path, key: String| {
+    // one frame of `key` over `store` (with `extra` flags): what the command said, the frame's pixels
+    let mut fly_with = |store: &std::path::Path, key: String, extra: &[&str]| -> (String, Vec<u8>) {
         n += 1;
         let (path, frames) = (d.join(format!("k{n}.toml")), d.join(format!("f{n}")));
         std::fs::write(&path, key).unwrap();
-        let o = hitex(&[
+        let (store, path, frames) = (s(store), s(&path), s(&frames));
+        let mut args = vec![
             "terrain",
             "fly",
-            &s(store),
+            &store,
             "--path",
-            &s(&path),
+            &path,
             "--frames",
             "1",
             "--size",
@@ -380,12 +382,18 @@ fn olinda_as_web_mercator_tiles_flies_like_the_local_store() {
             "--backend",
             "cpu",
             "-o",
-            &s(&frames),
-        ]);
+            &frames,
+        ];
+        args.extend_from_slice(extra);
+        let o = hitex(&args);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let text = String::from_utf8_lossy(&o.stdout).to_string();
+        (text, image::open(std::path::Path::new(&frames).join("frame-0000.png")).unwrap().to_rgba8().into_raw())
+    };
+    let mut fly = |store: &std::path::Path, key: String| {
+        let (text, pixels) = fly_with(store, key, &[]);
         assert!(text.contains("relief from"), "{text}");
-        image::open(frames.join("frame-0000.png")).unwrap().to_rgba8().into_raw()
+        pixels
     };
     let psnr = |a: &[u8], b: &[u8]| hitex_render::compare::compare_rgba(a, b).0.psnr_db;
     // straight down from 6 km: the ground registered within a texel
@@ -408,6 +416,22 @@ fn olinda_as_web_mercator_tiles_flies_like_the_local_store() {
     // the same ground seen through two resamplings (UTM 28.5 m texels, mercator 18.9 m)
     assert!(aligned > 28.0 && aligned > off + 3.0, "nadir {aligned} dB, 60 m off {off} dB");
     assert!(oblique > 19.0, "oblique {oblique} dB");
+    // the same file as another tool leaves it (no hitex description, no DEM,
+    // only its zoom-13 tiles): flown over flat ground, the same frame as
+    // hitex's own file, its coarser levels built alike on reading
+    let foreign = d.join("foreign.mbtiles");
+    std::fs::copy(&file, &foreign).unwrap();
+    rusqlite::Connection::open(&foreign)
+        .unwrap()
+        .execute_batch(
+            "DELETE FROM metadata WHERE name = 'hitex'; DROP TABLE hitex_files; DELETE FROM tiles WHERE zoom_level < 13;",
+        )
+        .unwrap();
+    let flat = ["--ground", "flat"];
+    let (_, own) = fly_with(&file, key(mx, my, 3000.0, 40.0, 30.0), &flat);
+    let (text, other) = fly_with(&foreign, key(mx, my, 3000.0, 40.0, 30.0), &flat);
+    assert!(text.contains("another tool") && text.contains("flat ground"), "{text}");
+    assert!(own == other, "another tool's copy of the file flies as hitex's own");
     // the pieces a user gets wrong, one line each
     let o = hitex(&["terrain", "build", "--procedural", "300x300", "-o", &s(&d.join("p.mbtiles"))]);
     assert_eq!(o.status.code(), Some(2));

@@ -277,5 +277,8 @@ mod tests {
         let names = b"tl000 pl000 tv000 pv000.png\ntl045 pl000 tv000 pv000.png\n\
                       tl000 pl000 tv045 pv000.png\ntl045 pl000 tv045 pv000.png\n";
         assert!(run(Target::BtfNames, names));
+        // an MBTiles file of hitex's and one made by another tool (no hitex row)
+        assert!(run(Target::Mbtiles, include_bytes!("../../../fuzz/seeds/mbtiles/tiny.mbtiles")));
+        assert!(run(Target::Mbtiles, include_bytes!("../../../fuzz/seeds/mbtiles/foreign.mbtiles")));
     }
 }

@@ -732,7 +732,7 @@ pub fn decode_tile(bytes: &[u8], path: &Path) -> Result<Vec<u8>, IoError> {
 
 /// Map (x, y) of level z: the 2×2 box filter of its children at z + 1, in
 /// linear light, weighted by alpha; children outside the data are empty.
-fn parent_tile(meta: &StoreMeta, sink: &dyn TileSink, z: u32, x: u32, y: u32) -> Result<Vec<u8>, IoError> {
+pub(crate) fn parent_tile(meta: &StoreMeta, sink: &dyn TileSink, z: u32, x: u32, y: u32) -> Result<Vec<u8>, IoError> {
     let [c0, r0, c1, r1] = meta.data_range(z + 1);
     let lut = decode_table(ColorSpace::Srgb);
     let mut out = vec![0u8; (TILE * TILE * 4) as usize];
@@ -802,6 +802,12 @@ impl Store {
     /// Whether it is one MBTiles file.
     pub fn is_mbtiles(&self) -> bool {
         self.mbtiles.is_some()
+    }
+
+    /// Whether it is an MBTiles file made by another tool (imagery only;
+    /// see [`crate::mbtiles`]).
+    pub fn is_foreign(&self) -> bool {
+        self.mbtiles.as_ref().is_some_and(|m| m.is_foreign())
     }
 
     /// Map (x, y-from-north) of level `z` as RGBA8, its size checked.

@@ -10,10 +10,25 @@
 //! ignore. Tiles are PNG, rows counted from the south (TMS), as the
 //! specification has them. A file is built under a temporary name beside
 //! its destination and renamed when complete.
+//!
+//! An MBTiles file made by another tool (GDAL, MapTiler, mb-util, …: no
+//! `hitex` row) is read as a web-mercator store too, imagery only (flat
+//! ground): its extent from the `bounds` row (else from its deepest tiles),
+//! its zooms from the tiles it holds, tiles PNG or JPEG of 256 or 512
+//! texels (a 512-texel tile of zoom z is four maps of zoom z + 1), rows from
+//! the south unless `scheme` says `xyz`. A tile the file omits (most tools
+//! leave out empty ones) reads as a transparent map; the zooms coarser than
+//! the file's coarsest, down to the one tile that holds the whole extent,
+//! are box-filtered from their children in linear light, as `terrain build`
+//! makes its own coarser levels.
 
 use crate::IoError;
-use crate::gst::{MAX_TILE_FILE_BYTES, Profile, StoreMeta, TileSink, decode_tile, parse_store_meta};
+use crate::gst::{
+    MAX_MERCATOR_ZOOM, MAX_TILE_FILE_BYTES, MERCATOR_HALF, MERCATOR_RADIUS, Profile, StoreMeta, TILE, TileSink,
+    decode_tile, parse_store_meta,
+};
 use rusqlite::{Connection, OpenFlags, OptionalExtension, params};
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
@@ -33,7 +48,34 @@ pub const MAX_STORED_FILE_BYTES: u64 = 1 << 30;
 pub struct MbTiles {
     conn: Mutex<Connection>,
     path: PathBuf,
+    /// Set for a file made by another tool: how its tiles become maps.
+    foreign: Option<Foreign>,
 }
+
+/// Most tiles at a foreign file's coarsest zoom within its extent from
+/// which hitex builds the coarser levels its pyramid needs (each built map
+/// reads 4^d of them, d levels down; 4,096 keeps the level-0 map to a few
+/// seconds of decoding).
+pub const MAX_FOREIGN_BUILD_TILES: u64 = 4096;
+
+/// How the tiles of an MBTiles file made by another tool become the
+/// store's maps (see the module documentation).
+#[derive(Debug)]
+struct Foreign {
+    /// The file's tile side: 256, or 512 (file zoom z is store zoom z + 1).
+    side: u32,
+    /// Rows counted from the north (`scheme` = `xyz`), not from the south.
+    xyz: bool,
+    /// The store zoom of the file's coarsest tiles: maps of coarser zooms
+    /// are built from their children.
+    first_zoom: u32,
+    /// Built maps two or more levels above the file's tiles (each summing
+    /// 16 or more of them), kept once built.
+    built: Mutex<BuiltMaps>,
+}
+
+/// Maps built from their children, by level, column and row.
+type BuiltMaps = HashMap<(u32, u32, u32), Vec<u8>>;
 
 fn sql_err(path: &Path, e: rusqlite::Error) -> IoError {
     IoError::Format { path: path.to_path_buf(), message: format!("SQLite: {e}") }
@@ -68,7 +110,7 @@ impl MbTiles {
              BEGIN;",
         )
         .map_err(|e| write_err(path, e))?;
-        Ok(Self { conn: Mutex::new(conn), path: path.to_path_buf() })
+        Ok(Self { conn: Mutex::new(conn), path: path.to_path_buf(), foreign: None })
     }
 
     /// The file.
@@ -153,26 +195,25 @@ impl MbTiles {
                 fmt("an SQLite database without the tables `metadata` and `tiles`: not an MBTiles file".into()),
             );
         }
-        let value = |k: &str| -> Result<Option<String>, IoError> {
-            conn.query_row("SELECT value FROM metadata WHERE name = ?1", params![k], |r| r.get::<_, Option<String>>(0))
-                .optional()
-                .map(Option::flatten)
-                .map_err(|e| sql_err(path, e))
-        };
-        let Some(json) = value("hitex")? else {
-            return Err(fmt("an MBTiles file without hitex's store description (made by another tool): \
-                 hitex reads the MBTiles files its 'terrain build' writes"
-                .into()));
+        let Some(json) = metadata_value(&conn, path, "hitex")? else {
+            let (meta, foreign) = foreign_meta(&conn, path)?;
+            return Ok((Self { conn: Mutex::new(conn), path: path.to_path_buf(), foreign: Some(foreign) }, meta));
         };
         let meta = parse_store_meta(&json, path)?;
         if meta.profile != Profile::Mercator {
             return Err(fmt("its store description is not of a web-mercator pyramid".into()));
         }
-        match value("format")?.as_deref() {
+        match metadata_value(&conn, path, "format")?.as_deref() {
             Some("png") => {}
             other => return Err(fmt(format!("tiles of format {other:?}; hitex's stores hold png"))),
         }
-        Ok((Self { conn: Mutex::new(conn), path: path.to_path_buf() }, meta))
+        Ok((Self { conn: Mutex::new(conn), path: path.to_path_buf(), foreign: None }, meta))
+    }
+
+    /// Whether the file was made by another tool (it has no `hitex` row):
+    /// imagery only, read as the module documentation says.
+    pub fn is_foreign(&self) -> bool {
+        self.foreign.is_some()
     }
 
     /// The stored bytes of the tile at `zoom`, `column`, TMS `row`, if any.
@@ -206,6 +247,9 @@ impl MbTiles {
 
     /// Map (x, y-from-north) of level `z` of `meta` as RGBA8.
     pub fn read_map(&self, meta: &StoreMeta, z: u32, x: u32, y: u32) -> Result<Vec<u8>, IoError> {
+        if let Some(f) = &self.foreign {
+            return self.foreign_map(f, meta, z, x, y);
+        }
         let (col, row) = (meta.global_tile(z, x, y).0, meta.tms_row(z, y));
         let zoom = meta.zoom(z);
         let name = self.path.join(format!("{zoom}/{col}/{row}.png"));
@@ -216,6 +260,58 @@ impl MbTiles {
                 message: format!("no tile {zoom}/{col}/{row} (zoom/column/row from the south)"),
             }),
         }
+    }
+
+    /// Map (x, y-from-north) of level `z` of a foreign file's store: cut from
+    /// the file's tile, transparent where the file has none, or built from
+    /// its four children above the file's coarsest zoom.
+    fn foreign_map(&self, f: &Foreign, meta: &StoreMeta, z: u32, x: u32, y: u32) -> Result<Vec<u8>, IoError> {
+        let zoom = meta.zoom(z);
+        if zoom < f.first_zoom {
+            let keep = f.first_zoom - zoom >= 2;
+            let lock = || f.built.lock().unwrap_or_else(|p| p.into_inner());
+            if keep && let Some(m) = lock().get(&(z, x, y)) {
+                return Ok(m.clone());
+            }
+            let out = crate::gst::parent_tile(meta, self, z, x, y)?;
+            if keep {
+                lock().insert((z, x, y), out.clone());
+            }
+            return Ok(out);
+        }
+        let (gx, gy) = meta.global_tile(z, x, y);
+        let (fzoom, fx, fy) = if f.side == 2 * TILE { (zoom - 1, gx / 2, gy / 2) } else { (zoom, gx, gy) };
+        let row = if f.xyz { fy } else { ((1u64 << fzoom) - 1 - fy as u64) as u32 };
+        let Some(bytes) = self.tile_bytes(fzoom, fx, row)? else {
+            return Ok(vec![0; (TILE * TILE * 4) as usize]);
+        };
+        let name = self.path.join(format!("{fzoom}/{fx}/{row}"));
+        let img = crate::decode_image(&bytes, &name, hitex_core::texture::ColorSpace::Srgb)?;
+        if img.width() != f.side || img.height() != f.side {
+            return Err(IoError::Format {
+                path: name,
+                message: format!(
+                    "tile of {}x{} texels; the file's tiles are {}x{}",
+                    img.width(),
+                    img.height(),
+                    f.side,
+                    f.side
+                ),
+            });
+        }
+        let all = img.bytes();
+        if f.side == TILE {
+            return Ok(all.to_vec());
+        }
+        // the quarter of the 512-texel tile that is this map
+        let (ox, oy) = ((gx % 2 * TILE) as usize, (gy % 2 * TILE) as usize);
+        let (t, s) = (TILE as usize, f.side as usize);
+        let mut out = Vec::with_capacity(t * t * 4);
+        for j in 0..t {
+            let i = ((oy + j) * s + ox) * 4;
+            out.extend_from_slice(&all[i..i + t * 4]);
+        }
+        Ok(out)
     }
 
     /// A file stored beside the tiles, if there is one of that name.
@@ -269,6 +365,138 @@ impl MbTiles {
             .map(|c| c.max(0) as u64)
             .map_err(|e| sql_err(&self.path, e))
     }
+}
+
+fn metadata_value(conn: &Connection, path: &Path, key: &str) -> Result<Option<String>, IoError> {
+    conn.query_row("SELECT value FROM metadata WHERE name = ?1", params![key], |r| r.get::<_, Option<String>>(0))
+        .optional()
+        .map(Option::flatten)
+        .map_err(|e| sql_err(path, e))
+}
+
+/// Web-mercator metres of a longitude and latitude in degrees (latitudes
+/// past the projection's ±85.05° clamped to it).
+fn mercator_metres(lon: f64, lat: f64) -> (f64, f64) {
+    let lim = (MERCATOR_HALF / MERCATOR_RADIUS).sinh().atan();
+    let phi = lat.to_radians().clamp(-lim, lim);
+    (MERCATOR_RADIUS * lon.to_radians(), MERCATOR_RADIUS * (std::f64::consts::FRAC_PI_4 + phi / 2.0).tan().ln())
+}
+
+/// The store an MBTiles file made by another tool describes (see the
+/// module documentation), and how its tiles become maps.
+fn foreign_meta(conn: &Connection, path: &Path) -> Result<(StoreMeta, Foreign), IoError> {
+    let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
+    let value = |k: &str| metadata_value(conn, path, k);
+    match value("format")?.map(|f| f.to_ascii_lowercase()).as_deref() {
+        None | Some("png" | "jpg" | "jpeg") => {}
+        Some("pbf" | "mvt") => {
+            return Err(fmt("vector tiles (format pbf): hitex flies over raster imagery, png or jpg tiles".into()));
+        }
+        Some(other) => return Err(fmt(format!("tiles of format {other:?}; hitex reads png and jpg tiles"))),
+    }
+    let xyz = match value("scheme")?.map(|f| f.to_ascii_lowercase()).as_deref() {
+        None | Some("tms") => false,
+        Some("xyz") => true,
+        Some(other) => return Err(fmt(format!("scheme {other:?}; MBTiles rows are tms (or xyz)"))),
+    };
+    let (min, max, count): (Option<i64>, Option<i64>, i64) = conn
+        .query_row("SELECT min(zoom_level), max(zoom_level), count(*) FROM tiles", [], |r| {
+            Ok((r.get(0)?, r.get(1)?, r.get(2)?))
+        })
+        .map_err(|e| sql_err(path, e))?;
+    let (Some(min), Some(max)) = (min, max) else {
+        return Err(fmt("an MBTiles file that holds no tiles".into()));
+    };
+    if count == 0 || min < 0 || max > MAX_MERCATOR_ZOOM as i64 {
+        return Err(fmt(format!("tiles of zooms {min} to {max}; hitex reads zooms 0 to {MAX_MERCATOR_ZOOM}")));
+    }
+    let (min, max) = (min as u32, max as u32);
+    // the tile side, from one of the deepest tiles
+    let (col, row, bytes): (i64, i64, Vec<u8>) = conn
+        .query_row(
+            "SELECT tile_column, tile_row, tile_data FROM tiles WHERE zoom_level = ?1 \
+             AND length(tile_data) <= ?2 LIMIT 1",
+            params![max, MAX_TILE_FILE_BYTES as i64],
+            |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
+        )
+        .optional()
+        .map_err(|e| sql_err(path, e))?
+        .ok_or_else(|| fmt(format!("no tile of zoom {max} within {MAX_TILE_FILE_BYTES} bytes")))?;
+    let name = path.join(format!("{max}/{col}/{row}"));
+    let img = crate::decode_image(&bytes, &name, hitex_core::texture::ColorSpace::Srgb)?;
+    let side = img.width();
+    if img.height() != side || (side != TILE && side != 2 * TILE) {
+        return Err(IoError::Format {
+            path: name,
+            message: format!("tile of {}x{} texels; hitex reads tiles of 256 or 512 texels a side", side, img.height()),
+        });
+    }
+    // the extent: the bounds row, else the deepest tiles' squares
+    let bounds = match value("bounds")? {
+        Some(b) => {
+            let v: Vec<f64> = b.split(',').filter_map(|t| t.trim().parse().ok()).collect();
+            let ok = v.len() == 4
+                && v.iter().all(|x| x.is_finite())
+                && (-180.0..=180.0).contains(&v[0])
+                && (-180.0..=180.0).contains(&v[2])
+                && (-90.0..=90.0).contains(&v[1])
+                && (-90.0..=90.0).contains(&v[3])
+                && v[0] < v[2]
+                && v[1] < v[3];
+            if !ok {
+                return Err(fmt(format!("metadata bounds {b:?} is not west,south,east,north in degrees")));
+            }
+            let ((x0, y0), (x1, y1)) = (mercator_metres(v[0], v[1]), mercator_metres(v[2], v[3]));
+            [x0, y0, x1, y1]
+        }
+        None => {
+            let (c0, c1, r0, r1): (i64, i64, i64, i64) = conn
+                .query_row(
+                    "SELECT min(tile_column), max(tile_column), min(tile_row), max(tile_row) FROM tiles \
+                     WHERE zoom_level = ?1",
+                    params![max],
+                    |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?)),
+                )
+                .map_err(|e| sql_err(path, e))?;
+            let n = 1i64 << max;
+            if c0 < 0 || r0 < 0 || c1 >= n || r1 >= n {
+                return Err(fmt(format!("tiles of zoom {max} outside its {n}x{n} grid")));
+            }
+            // rows from the north
+            let (n0, n1) = if xyz { (r0, r1) } else { (n - 1 - r1, n - 1 - r0) };
+            let size = 2.0 * MERCATOR_HALF / n as f64;
+            [
+                -MERCATOR_HALF + c0 as f64 * size,
+                MERCATOR_HALF - (n1 + 1) as f64 * size,
+                -MERCATOR_HALF + (c1 + 1) as f64 * size,
+                MERCATOR_HALF - n0 as f64 * size,
+            ]
+        }
+    };
+    let double = side == 2 * TILE;
+    let zoom = max + double as u32;
+    // bounds written at texel edges (as tools write them, to a few decimals)
+    // must not take in a sliver of the texel beyond: shrunk by a thousandth
+    // of a texel before the extent is rounded out to whole texels
+    let eps = 2.0 * MERCATOR_HALF / (TILE as f64 * (1u64 << zoom) as f64) * 1e-3;
+    let bounds = [bounds[0] + eps, bounds[1] + eps, bounds[2] - eps, bounds[3] - eps];
+    let label = value("name")?
+        .filter(|n| !n.trim().is_empty())
+        .unwrap_or_else(|| path.file_stem().map_or_else(|| "MBTiles".into(), |s| s.to_string_lossy().into_owned()));
+    let meta = StoreMeta::mercator(bounds, zoom, &format!("{label} (an MBTiles file by another tool)"))
+        .map_err(|e| fmt(format!("its extent at zoom {zoom}: {e}")))?;
+    let first_zoom = min + double as u32;
+    if first_zoom > meta.zoom(0) {
+        let level = first_zoom - meta.zoom(0);
+        let n = meta.data_count(level);
+        if n > MAX_FOREIGN_BUILD_TILES {
+            return Err(fmt(format!(
+                "its coarsest tiles (zoom {min}) number {n} over its extent; hitex builds the {level} coarser \
+                 levels its pyramid needs from at most {MAX_FOREIGN_BUILD_TILES}: add coarser zooms to the file"
+            )));
+        }
+    }
+    Ok((meta, Foreign { side, xyz, first_zoom, built: Mutex::new(HashMap::new()) }))
 }
 
 impl TileSink for MbTiles {
@@ -526,11 +754,6 @@ mod tests {
         let p = d.join("empty.mbtiles");
         Connection::open(&p).unwrap().execute_batch("CREATE TABLE t (x);").unwrap();
         assert!(err(&p).contains("not an MBTiles file"), "{}", err(&p));
-        // another tool's MBTiles: no description of hitex's
-        let p = d.join("other.mbtiles");
-        std::fs::copy(&good, &p).unwrap();
-        Connection::open(&p).unwrap().execute("DELETE FROM metadata WHERE name = 'hitex'", []).unwrap();
-        assert!(err(&p).contains("another tool"), "{}", err(&p));
         // a description that lies about its levels
         let p = d.join("lie.mbtiles");
         std::fs::copy(&good, &p).unwrap();
@@ -577,6 +800,204 @@ mod tests {
             .filter(|e| e.file_name().to_string_lossy().contains("partial"))
             .collect();
         assert!(left.is_empty(), "{left:?}");
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    /// A copy of `good` as another tool would have made it: no hitex row, no
+    /// stored files, `sql` applied on top.
+    fn foreign_copy(good: &Path, to: &Path, sql: &str) {
+        std::fs::copy(good, to).unwrap();
+        let c = Connection::open(to).unwrap();
+        c.execute_batch("DELETE FROM metadata WHERE name = 'hitex'; DROP TABLE hitex_files;").unwrap();
+        c.execute_batch(sql).unwrap();
+    }
+
+    fn png(w: u32, h: u32, rgba: &[u8]) -> Vec<u8> {
+        use image::ImageEncoder;
+        let mut buf = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut buf).write_image(rgba, w, h, image::ExtendedColorType::Rgba8).unwrap();
+        buf
+    }
+
+    #[test]
+    fn another_tools_mbtiles_reads_as_the_same_store() {
+        let d = tmp("foreign");
+        let (meta, src) = sample();
+        assert!(meta.levels >= 3, "{}", meta.levels);
+        let good = d.join("good.mbtiles");
+        build_mbtiles(&src, &meta, &good, &[], &|_, _| {}).unwrap();
+        let hitex = Store::open(&good).unwrap();
+        // only the finest zoom kept: every coarser level is built on reading
+        let p = d.join("only14.mbtiles");
+        foreign_copy(&good, &p, "DELETE FROM tiles WHERE zoom_level < 14;");
+        let other = Store::open(&p).unwrap();
+        assert_eq!(other.meta.levels, meta.levels);
+        assert_eq!((other.meta.width, other.meta.height, other.meta.offset), (meta.width, meta.height, meta.offset));
+        assert_eq!((other.meta.origin, other.meta.tiles), (meta.origin, meta.tiles));
+        assert!(other.meta.source.contains("another tool"), "{}", other.meta.source);
+        assert!(other.dem().unwrap().is_none());
+        // the same filter over the same children: the same bits, twice (kept maps)
+        for _ in 0..2 {
+            for z in 0..meta.levels {
+                for (x, y) in meta.data_maps(z) {
+                    assert!(other.read_tile(z, x, y).unwrap() == hitex.read_tile(z, x, y).unwrap(), "{z}/{x}/{y}");
+                }
+            }
+        }
+        // without a bounds row the extent is the deepest tiles' squares
+        let p = d.join("nobounds.mbtiles");
+        foreign_copy(&good, &p, "DELETE FROM metadata WHERE name = 'bounds';");
+        let nb = Store::open(&p).unwrap();
+        let deepest = meta.data_range(meta.levels - 1);
+        assert_eq!(nb.meta.offset, [deepest[0] * TILE, deepest[1] * TILE]);
+        assert_eq!(nb.meta.width, (deepest[2] - deepest[0]) * TILE);
+        assert_eq!(nb.meta.tiles, meta.tiles);
+        // a JPEG tile reads within JPEG's error; a tile the file omits is transparent
+        let (x, y) = meta.data_maps(meta.levels - 1).nth(1).unwrap();
+        let (col, row) = (meta.global_tile(meta.levels - 1, x, y).0, meta.tms_row(meta.levels - 1, y));
+        let want = hitex.read_tile(meta.levels - 1, x, y).unwrap();
+        let rgb: Vec<u8> = want.chunks_exact(4).flat_map(|c| [c[0], c[1], c[2]]).collect();
+        let mut jpg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpg, 95)
+            .encode(&rgb, TILE, TILE, image::ExtendedColorType::Rgb8)
+            .unwrap();
+        let p = d.join("jpeg.mbtiles");
+        foreign_copy(&good, &p, "UPDATE metadata SET value = 'jpg' WHERE name = 'format';");
+        Connection::open(&p)
+            .unwrap()
+            .execute(
+                "UPDATE tiles SET tile_data = ?1 WHERE zoom_level = 14 AND tile_column = ?2 AND tile_row = ?3",
+                params![jpg, col, row],
+            )
+            .unwrap();
+        let got = Store::open(&p).unwrap().read_tile(meta.levels - 1, x, y).unwrap();
+        // over the texels inside the data (JPEG has no alpha: opaque everywhere)
+        let (mut sum, mut n) = (0.0, 0);
+        for (g, w) in got.chunks_exact(4).zip(want.chunks_exact(4)) {
+            assert_eq!(g[3], 255);
+            if w[3] == 255 {
+                sum += (0..3).map(|k| (g[k] as f64 - w[k] as f64).abs()).sum::<f64>();
+                n += 3;
+            }
+        }
+        assert!(n > 30_000 && sum / n as f64 <= 3.0 && got != want, "mean |Δ| {} over {n}", sum / n as f64);
+        let p = d.join("hole.mbtiles");
+        foreign_copy(
+            &good,
+            &p,
+            &format!("DELETE FROM tiles WHERE zoom_level = 14 AND tile_column = {col} AND tile_row = {row};"),
+        );
+        assert!(Store::open(&p).unwrap().read_tile(meta.levels - 1, x, y).unwrap().iter().all(|&b| b == 0));
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    #[test]
+    fn tiles_of_512_texels_are_four_maps_each() {
+        let d = tmp("foreign512");
+        let (meta, src) = sample();
+        let good = d.join("good.mbtiles");
+        build_mbtiles(&src, &meta, &good, &[], &|_, _| {}).unwrap();
+        let hitex = Store::open(&good).unwrap();
+        // zoom-13 tiles of 512 texels stitched from the zoom-14 maps, rows from the north
+        let fine = meta.levels - 1;
+        let [x0, y0, x1, y1] = meta.data_range(fine);
+        let p = d.join("big.mbtiles");
+        foreign_copy(&good, &p, "DELETE FROM tiles; INSERT INTO metadata VALUES ('scheme', 'xyz');");
+        let conn = Connection::open(&p).unwrap();
+        let mut done = std::collections::HashSet::new();
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let (gx, gy) = meta.global_tile(fine, x, y);
+                if !done.insert((gx / 2, gy / 2)) {
+                    continue;
+                }
+                let mut big = vec![0u8; (4 * TILE * TILE * 4) as usize];
+                for (dx, dy) in [(0u32, 0u32), (1, 0), (0, 1), (1, 1)] {
+                    let (cx, cy) = ((gx / 2 * 2 + dx) - (gx - x), (gy / 2 * 2 + dy) - (gy - y));
+                    if cx < x0 || cy < y0 || cx >= x1 || cy >= y1 {
+                        continue;
+                    }
+                    let m = hitex.read_tile(fine, cx, cy).unwrap();
+                    for j in 0..TILE {
+                        let o = (((dy * TILE + j) * 2 * TILE + dx * TILE) * 4) as usize;
+                        let i = (j * TILE * 4) as usize;
+                        big[o..o + (TILE * 4) as usize].copy_from_slice(&m[i..i + (TILE * 4) as usize]);
+                    }
+                }
+                conn.execute(
+                    "INSERT INTO tiles VALUES (13, ?1, ?2, ?3)",
+                    params![gx / 2, gy / 2, png(2 * TILE, 2 * TILE, &big)],
+                )
+                .unwrap();
+            }
+        }
+        drop(conn);
+        let other = Store::open(&p).unwrap();
+        assert_eq!((other.meta.tiles, other.meta.levels, other.meta.offset), (meta.tiles, meta.levels, meta.offset));
+        for z in 0..meta.levels {
+            for (x, y) in meta.data_maps(z) {
+                assert!(other.read_tile(z, x, y).unwrap() == hitex.read_tile(z, x, y).unwrap(), "{z}/{x}/{y}");
+            }
+        }
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    #[test]
+    fn foreign_mbtiles_hitex_cannot_fly_are_named_errors() {
+        let d = tmp("foreign-bad");
+        let (meta, src) = sample();
+        let good = d.join("good.mbtiles");
+        build_mbtiles(&src, &meta, &good, &[], &|_, _| {}).unwrap();
+        let err = |name: &str, sql: &str| -> String {
+            let p = d.join(name);
+            foreign_copy(&good, &p, sql);
+            let e = match Store::open(&p) {
+                Ok(s) => s
+                    .read_tile(
+                        meta.levels - 1,
+                        meta.data_range(meta.levels - 1)[0],
+                        meta.data_range(meta.levels - 1)[1],
+                    )
+                    .err()
+                    .map(|e| e.to_string())
+                    .unwrap_or_else(|| "ok".into()),
+                Err(e) => e.to_string(),
+            };
+            assert!(e.contains(name), "{name}: {e}");
+            e
+        };
+        assert!(err("webp.mbtiles", "UPDATE metadata SET value = 'webp' WHERE name = 'format';").contains("\"webp\""));
+        assert!(
+            err("pbf.mbtiles", "UPDATE metadata SET value = 'pbf' WHERE name = 'format';").contains("vector tiles")
+        );
+        assert!(err("scheme.mbtiles", "INSERT INTO metadata VALUES ('scheme', 'quadkey');").contains("quadkey"));
+        assert!(err("empty.mbtiles", "DELETE FROM tiles;").contains("no tiles"));
+        assert!(err("zoom.mbtiles", "UPDATE tiles SET zoom_level = 30 WHERE zoom_level = 14;").contains("zooms"));
+        assert!(
+            err("bounds.mbtiles", "UPDATE metadata SET value = '-35,-8' WHERE name = 'bounds';").contains("bounds")
+        );
+        assert!(
+            err("flip.mbtiles", "UPDATE metadata SET value = '-34,-8,-35,-7' WHERE name = 'bounds';")
+                .contains("bounds")
+        );
+        let odd = png(300, 300, &vec![9u8; 300 * 300 * 4]);
+        let p = d.join("odd.mbtiles");
+        foreign_copy(&good, &p, "");
+        Connection::open(&p)
+            .unwrap()
+            .execute("UPDATE tiles SET tile_data = ?1 WHERE zoom_level = 14", params![odd])
+            .unwrap();
+        let e = Store::open(&p).err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(e.contains("300x300") && e.contains("odd.mbtiles"), "{e}");
+        // a wide extent over only its deepest tiles: too many to build level 0 from
+        let e = err(
+            "wide.mbtiles",
+            "UPDATE metadata SET value = '-40,-12,-30,-2' WHERE name = 'bounds'; DELETE FROM tiles WHERE zoom_level < 14;",
+        );
+        assert!(e.contains("coarser zooms"), "{e}");
+        // a corrupt tile names its zoom, column and row
+        let e = err("corrupt.mbtiles", "UPDATE tiles SET tile_data = x'89504e47' WHERE zoom_level = 14;");
+        assert!(e.contains("corrupt.mbtiles/14/") && e.contains("image"), "{e}");
         let _ = std::fs::remove_dir_all(&d);
     }
 }
