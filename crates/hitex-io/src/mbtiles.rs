@@ -17,9 +17,9 @@
 //! its zooms from the tiles it holds, tiles PNG or JPEG of 256 or 512
 //! texels (a 512-texel tile of zoom z is four maps of zoom z + 1), rows from
 //! the south unless `scheme` says `xyz`. A tile the file omits (most tools
-//! leave out empty ones) reads as a transparent map; the zooms coarser than
-//! the file's coarsest, down to the one tile that holds the whole extent,
-//! are box-filtered from their children in linear light, as `terrain build`
+//! leave out empty ones) reads as a transparent map; the zooms the file
+//! lacks, from the one tile that holds the whole extent down, are
+//! box-filtered from their children in linear light, as `terrain build`
 //! makes its own coarser levels.
 
 use crate::IoError;
@@ -52,11 +52,15 @@ pub struct MbTiles {
     foreign: Option<Foreign>,
 }
 
-/// Most tiles at a foreign file's coarsest zoom within its extent from
-/// which hitex builds the coarser levels its pyramid needs (each built map
-/// reads 4^d of them, d levels down; 4,096 keeps the level-0 map to a few
-/// seconds of decoding).
+/// Most maps of a zoom a foreign file holds within its extent from which
+/// hitex builds the coarser zooms above it that the file lacks (each built
+/// map reads 4^d of them, d levels down; 4,096 keeps the level-0 map to a
+/// few seconds of decoding).
 pub const MAX_FOREIGN_BUILD_TILES: u64 = 4096;
+
+/// Most built maps kept once built (64 MiB); maps past it are built again
+/// when asked for (the resident-map cache keeps what a flight uses).
+const MAX_KEPT_MAPS: usize = 256;
 
 /// How the tiles of an MBTiles file made by another tool become the
 /// store's maps (see the module documentation).
@@ -66,9 +70,9 @@ struct Foreign {
     side: u32,
     /// Rows counted from the north (`scheme` = `xyz`), not from the south.
     xyz: bool,
-    /// The store zoom of the file's coarsest tiles: maps of coarser zooms
-    /// are built from their children.
-    first_zoom: u32,
+    /// The store zooms the file holds tiles of, ascending: maps of the
+    /// others are built from their children.
+    zooms: Vec<u32>,
     /// Built maps two or more levels above the file's tiles (each summing
     /// 16 or more of them), kept once built.
     built: Mutex<BuiltMaps>,
@@ -263,19 +267,24 @@ impl MbTiles {
     }
 
     /// Map (x, y-from-north) of level `z` of a foreign file's store: cut from
-    /// the file's tile, transparent where the file has none, or built from
-    /// its four children above the file's coarsest zoom.
+    /// the file's tile, transparent where the file has none, or, at a zoom
+    /// the file lacks, built from its four children.
     fn foreign_map(&self, f: &Foreign, meta: &StoreMeta, z: u32, x: u32, y: u32) -> Result<Vec<u8>, IoError> {
         let zoom = meta.zoom(z);
-        if zoom < f.first_zoom {
-            let keep = f.first_zoom - zoom >= 2;
+        if f.zooms.binary_search(&zoom).is_err() {
+            // two or more zooms above the next one the file holds (each
+            // summing 16 or more of its tiles): kept once built
+            let keep = f.zooms.iter().find(|&&held| held > zoom).is_some_and(|&held| held - zoom >= 2);
             let lock = || f.built.lock().unwrap_or_else(|p| p.into_inner());
             if keep && let Some(m) = lock().get(&(z, x, y)) {
                 return Ok(m.clone());
             }
             let out = crate::gst::parent_tile(meta, self, z, x, y)?;
             if keep {
-                lock().insert((z, x, y), out.clone());
+                let mut kept = lock();
+                if kept.len() < MAX_KEPT_MAPS {
+                    kept.insert((z, x, y), out.clone());
+                }
             }
             return Ok(out);
         }
@@ -410,7 +419,7 @@ fn foreign_meta(conn: &Connection, path: &Path) -> Result<(StoreMeta, Foreign), 
     if count == 0 || min < 0 || max > MAX_MERCATOR_ZOOM as i64 {
         return Err(fmt(format!("tiles of zooms {min} to {max}; hitex reads zooms 0 to {MAX_MERCATOR_ZOOM}")));
     }
-    let (min, max) = (min as u32, max as u32);
+    let max = max as u32;
     // the tile side, from one of the deepest tiles
     let (col, row, bytes): (i64, i64, Vec<u8>) = conn
         .query_row(
@@ -434,7 +443,7 @@ fn foreign_meta(conn: &Connection, path: &Path) -> Result<(StoreMeta, Foreign), 
     // the extent: the bounds row, else the deepest tiles' squares
     let bounds = match value("bounds")? {
         Some(b) => {
-            let v: Vec<f64> = b.split(',').filter_map(|t| t.trim().parse().ok()).collect();
+            let v: Vec<f64> = b.split(',').map(|t| t.trim().parse().unwrap_or(f64::NAN)).collect();
             let ok = v.len() == 4
                 && v.iter().all(|x| x.is_finite())
                 && (-180.0..=180.0).contains(&v[0])
@@ -475,28 +484,49 @@ fn foreign_meta(conn: &Connection, path: &Path) -> Result<(StoreMeta, Foreign), 
     };
     let double = side == 2 * TILE;
     let zoom = max + double as u32;
-    // bounds written at texel edges (as tools write them, to a few decimals)
-    // must not take in a sliver of the texel beyond: shrunk by a thousandth
-    // of a texel before the extent is rounded out to whole texels
-    let eps = 2.0 * MERCATOR_HALF / (TILE as f64 * (1u64 << zoom) as f64) * 1e-3;
-    let bounds = [bounds[0] + eps, bounds[1] + eps, bounds[2] - eps, bounds[3] - eps];
+    // bounds written at texel edges to a few decimals must not take in a
+    // sliver of the texel beyond: shrunk by a quarter texel (as a store's
+    // description is checked), at most a quarter of the extent, before the
+    // extent is rounded out to whole texels
+    let texel = 2.0 * MERCATOR_HALF / (TILE as f64 * (1u64 << zoom) as f64);
+    let (ex, ey) = ((texel / 4.0).min((bounds[2] - bounds[0]) / 4.0), (texel / 4.0).min((bounds[3] - bounds[1]) / 4.0));
+    let bounds = [bounds[0] + ex, bounds[1] + ey, bounds[2] - ex, bounds[3] - ey];
     let label = value("name")?
         .filter(|n| !n.trim().is_empty())
         .unwrap_or_else(|| path.file_stem().map_or_else(|| "MBTiles".into(), |s| s.to_string_lossy().into_owned()));
     let meta = StoreMeta::mercator(bounds, zoom, &format!("{label} (an MBTiles file by another tool)"))
         .map_err(|e| fmt(format!("its extent at zoom {zoom}: {e}")))?;
-    let first_zoom = min + double as u32;
-    if first_zoom > meta.zoom(0) {
-        let level = first_zoom - meta.zoom(0);
-        let n = meta.data_count(level);
-        if n > MAX_FOREIGN_BUILD_TILES {
-            return Err(fmt(format!(
-                "its coarsest tiles (zoom {min}) number {n} over its extent; hitex builds the {level} coarser \
-                 levels its pyramid needs from at most {MAX_FOREIGN_BUILD_TILES}: add coarser zooms to the file"
-            )));
+    // the zooms the file holds (from the index), in the store's zooms
+    let mut st =
+        conn.prepare("SELECT DISTINCT zoom_level FROM tiles ORDER BY zoom_level").map_err(|e| sql_err(path, e))?;
+    let zooms: Vec<u32> = st
+        .query_map([], |r| r.get::<_, i64>(0))
+        .map_err(|e| sql_err(path, e))?
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| sql_err(path, e))?
+        .into_iter()
+        .map(|z| z as u32 + double as u32)
+        .collect();
+    // every run of zooms the file lacks is built from the zoom below it
+    for (k, &held) in zooms.iter().enumerate() {
+        let above = if k == 0 { meta.zoom(0) } else { zooms[k - 1] + 1 };
+        if held > above && held > meta.zoom(0) {
+            let n = meta.data_count(held - meta.zoom(0));
+            if n > MAX_FOREIGN_BUILD_TILES {
+                let (file_zoom, levels) = (held - double as u32, held - above.max(meta.zoom(0)));
+                let which = if k == 0 {
+                    format!("coarsest tiles (zoom {file_zoom})")
+                } else {
+                    format!("zoom-{file_zoom} tiles")
+                };
+                return Err(fmt(format!(
+                    "its {which} number {n} over its extent; hitex builds the {levels} coarser levels its pyramid \
+                     needs from at most {MAX_FOREIGN_BUILD_TILES}: add coarser zooms to the file"
+                )));
+            }
         }
     }
-    Ok((meta, Foreign { side, xyz, first_zoom, built: Mutex::new(HashMap::new()) }))
+    Ok((meta, Foreign { side, xyz, zooms, built: Mutex::new(HashMap::new()) }))
 }
 
 impl TileSink for MbTiles {
@@ -844,6 +874,15 @@ mod tests {
                 }
             }
         }
+        // a zoom between two the file holds is built from the one below it
+        let p = d.join("gap.mbtiles");
+        foreign_copy(&good, &p, "DELETE FROM tiles WHERE zoom_level = 13;");
+        let gap = Store::open(&p).unwrap();
+        for z in 0..meta.levels {
+            for (x, y) in meta.data_maps(z) {
+                assert!(gap.read_tile(z, x, y).unwrap() == hitex.read_tile(z, x, y).unwrap(), "{z}/{x}/{y}");
+            }
+        }
         // without a bounds row the extent is the deepest tiles' squares
         let p = d.join("nobounds.mbtiles");
         foreign_copy(&good, &p, "DELETE FROM metadata WHERE name = 'bounds';");
@@ -888,6 +927,29 @@ mod tests {
             &format!("DELETE FROM tiles WHERE zoom_level = 14 AND tile_column = {col} AND tile_row = {row};"),
         );
         assert!(Store::open(&p).unwrap().read_tile(meta.levels - 1, x, y).unwrap().iter().all(|&b| b == 0));
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    /// Bounds at tile edges written to 7 decimals (as tools write them) lie up
+    /// to 6 mm outside the tiles: at zoom 17 (1.2 m texels) the extent takes
+    /// in no texel, and so no level, beyond them.
+    #[test]
+    fn bounds_at_tile_edges_to_seven_decimals_take_in_no_extra_texel() {
+        let d = tmp("foreign-edges");
+        let (meta, src) = sample();
+        let good = d.join("good.mbtiles");
+        build_mbtiles(&src, &meta, &good, &[], &|_, _| {}).unwrap();
+        // one zoom-12 tile's square (column 1625, row 2063 from the north), its zoom-17 tiles
+        let p = d.join("z17.mbtiles");
+        foreign_copy(
+            &good,
+            &p,
+            "UPDATE metadata SET value = '-37.1777344,-1.4061088,-37.0898438,-1.3182431' WHERE name = 'bounds';
+             DELETE FROM tiles WHERE zoom_level < 14; UPDATE tiles SET zoom_level = 17;",
+        );
+        let m = Store::open(&p).unwrap().meta;
+        assert_eq!((m.width, m.height, m.offset), (8192, 8192, [0, 0]));
+        assert_eq!((m.levels, m.tiles), (6, [12, 1625, 2063]));
         let _ = std::fs::remove_dir_all(&d);
     }
 
