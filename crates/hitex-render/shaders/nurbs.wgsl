@@ -615,30 +615,56 @@ fn trimmed_away(pid: i32, u: f32, v: f32) -> bool {
 }
 
 // how far past its boundary (domain side or trimming loop) a fragment is
-// still drawn, in units of its parameters' fwidth (about a pixel): the
-// trimming loops of faces meeting along an edge are different polylines of
-// one curve; drawing each a little past its loop, behind the other, closes
-// the seam (untrimmed sides are closed by the tessellation's boundary fans)
+// still drawn, in pixels: the trimming loops of faces meeting along an edge
+// are different polylines of one curve; drawing each a little past its loop,
+// behind the other, closes the seam (untrimmed sides are closed by the
+// tessellation's boundary fans). Past a domain side: the parameter's
+// overshoot in fwidths; past a trimming loop: the distance on screen to the
+// nearest trimming edge, through the inverse of the (u, v) Jacobian
 const SEAM_REACH: f32 = 0.75;
 
-fn near_trim(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> bool {
-    if !(fu > 0.0 && fv > 0.0) {
+// the map from a parameter offset (du, dv) to its screen offset in units of
+// r pixels, (xu, xv, yu, yv): the inverse of the Jacobian g = (du/dx, du/dy,
+// dv/dx, dv/dy) over r; ok false where g is singular (seen edge-on)
+struct ToPixels {
+    m: vec4<f32>,
+    ok: bool,
+};
+
+fn to_pixels(g: vec4<f32>, r: f32) -> ToPixels {
+    let det = g.x * g.w - g.y * g.z;
+    let s = 1.0 / (det * r);
+    let ok = det != 0.0 && abs(s) <= 3.0e38;
+    return ToPixels(vec4<f32>(g.w * s, -g.y * s, -g.z * s, g.x * s), ok);
+}
+
+// squared screen distance, in the units of m, from (u, v) to the
+// parameter-space segment e (x0, y0, x1, y1)
+fn segment_d2(m: vec4<f32>, e: vec4<f32>, u: f32, v: f32) -> f32 {
+    let pu = e.x - u;
+    let pv = e.y - v;
+    let qu = e.z - e.x;
+    let qv = e.w - e.y;
+    let a = vec2<f32>(m.x * pu + m.y * pv, m.z * pu + m.w * pv);
+    let d = vec2<f32>(m.x * qu + m.y * qv, m.z * qu + m.w * qv);
+    let dd = d.x * d.x + d.y * d.y;
+    var k = 0.0;
+    if dd > 0.0 {
+        k = clamp(-(a.x * d.x + a.y * d.y) / dd, 0.0, 1.0);
+    }
+    let p = a + k * d;
+    return p.x * p.x + p.y * p.y;
+}
+
+fn near_trim(pid: i32, u: f32, v: f32, g: vec4<f32>) -> bool {
+    let tp = to_pixels(g, SEAM_REACH);
+    if !tp.ok {
         return false;
     }
-    let sx = 1.0 / (SEAM_REACH * fu);
-    let sy = 1.0 / (SEAM_REACH * fv);
     let n = i32(textureLoad(trims, vec2<i32>(0, pid), 0).x);
     for (var i = 1; i <= n; i = i + 1) {
         let e = textureLoad(trims, vec2<i32>(i, pid), 0);
-        let a = vec2<f32>((e.x - u) * sx, (e.y - v) * sy);
-        let d = vec2<f32>((e.z - e.x) * sx, (e.w - e.y) * sy);
-        let dd = dot(d, d);
-        var k = 0.0;
-        if dd > 0.0 {
-            k = clamp(-dot(a, d) / dd, 0.0, 1.0);
-        }
-        let p = a + k * d;
-        if dot(p, p) <= 1.0 {
+        if segment_d2(tp.m, e, u, v) <= 1.0 {
             return true;
         }
     }
@@ -648,27 +674,18 @@ fn near_trim(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> bool {
 // half the width of drawn edges, in pixels
 const EDGE_REACH: f32 = 1.5;
 
-// the colour of the nearest drawn edge within EDGE_REACH pixels of (u, v); x < 0: none
-fn on_edge(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> vec4<f32> {
-    if !(fu > 0.0 && fv > 0.0) {
+// the colour of the nearest drawn edge within EDGE_REACH pixels on screen of
+// (u, v); x < 0: none
+fn on_edge(pid: i32, u: f32, v: f32, g: vec4<f32>) -> vec4<f32> {
+    let tp = to_pixels(g, EDGE_REACH);
+    if !tp.ok {
         return vec4<f32>(-1.0);
     }
-    let sx = 1.0 / (EDGE_REACH * fu);
-    let sy = 1.0 / (EDGE_REACH * fv);
     let n = i32(textureLoad(edges, vec2<i32>(0, pid), 0).x);
     var best = 2.0;
     var c = vec4<f32>(-1.0);
     for (var i = 0; i < n; i = i + 1) {
-        let e = textureLoad(edges, vec2<i32>(1 + 2 * i, pid), 0);
-        let a = vec2<f32>((e.x - u) * sx, (e.y - v) * sy);
-        let d = vec2<f32>((e.z - e.x) * sx, (e.w - e.y) * sy);
-        let dd = dot(d, d);
-        var k = 0.0;
-        if dd > 0.0 {
-            k = clamp(-dot(a, d) / dd, 0.0, 1.0);
-        }
-        let p = a + k * d;
-        let d2 = dot(p, p);
+        let d2 = segment_d2(tp.m, textureLoad(edges, vec2<i32>(1 + 2 * i, pid), 0), u, v);
         if d2 <= 1.0 && d2 < best {
             best = d2;
             c = textureLoad(edges, vec2<i32>(2 + 2 * i, pid), 0);
@@ -691,7 +708,9 @@ fn domain(pid: i32) -> vec4<f32> {
 // where a fragment lies against its patch's boundary: 0 inside, 1 past it
 // within the seam reach (drawn behind any surface truly there), 2 beyond
 // (discarded)
-fn reach(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> u32 {
+fn reach(pid: i32, u: f32, v: f32, g: vec4<f32>) -> u32 {
+    let fu = abs(g.x) + abs(g.y);
+    let fv = abs(g.z) + abs(g.w);
     let d = domain(pid);
     let ou = max(d.x - u, u - d.y);
     let ov = max(d.z - v, v - d.w);
@@ -699,7 +718,7 @@ fn reach(pid: i32, u: f32, v: f32, fu: f32, fv: f32) -> u32 {
         return 2u;
     }
     if trimmed_away(pid, u, v) {
-        if near_trim(pid, u, v, fu, fv) {
+        if near_trim(pid, u, v, g) {
             return 1u;
         }
         return 2u;
@@ -757,7 +776,7 @@ fn fs_main(in: VsOut) -> FsOut {
     let fu = abs(g.x) + abs(g.y);
     let fv = abs(g.z) + abs(g.w);
     // past the domain or trimmed away, beyond the seam reach: discarded
-    var at = reach(pid, in.u, in.v, fu, fv);
+    var at = reach(pid, in.u, in.v, g);
     // boundary-fan fragments (patch index marked by a quarter) are seam fragments
     if at == 0u && abs(in.patch_id - round(in.patch_id)) > 0.125 {
         at = 1u;
@@ -839,7 +858,7 @@ fn fs_main(in: VsOut) -> FsOut {
         c = SECTION_RGB;
     }
     if (frame.params.w & 16u) == 16u {
-        let ec = on_edge(pid, in.u, in.v, fu, fv);
+        let ec = on_edge(pid, in.u, in.v, g);
         if ec.x >= 0.0 {
             c = ec.xyz;
         }

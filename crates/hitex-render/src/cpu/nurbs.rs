@@ -180,14 +180,19 @@ pub fn trimmed_away(t: &PackedNurbs, patch: usize, u: f32, v: f32) -> bool {
 }
 
 /// How far beyond its patch's boundary (the domain's sides or a trimming
-/// loop) a fragment is still drawn, in units of its parameter's fwidth, i.e.
-/// about a pixel. The trimming loops of two faces meeting along an edge are
-/// different polylines of one curve; drawing each face a little past its
-/// loop, behind the other ([`Reach::Seam`]), closes the seam without a
-/// pinhole while an open edge grows by less than a pixel. (Untrimmed sides
-/// are closed by the tessellation's boundary fans instead.) Fragments past
-/// the domain show the boundary point (their parameters are clamped); past
-/// a trimming loop, the untrimmed surface just beyond it.
+/// loop) a fragment is still drawn, in pixels. The trimming loops of two
+/// faces meeting along an edge are different polylines of one curve; drawing
+/// each face a little past its loop, behind the other ([`Reach::Seam`]),
+/// closes the seam without a pinhole while an open edge grows by less than a
+/// pixel. (Untrimmed sides are closed by the tessellation's boundary fans
+/// instead.) Past a domain side the distance is the parameter's overshoot in
+/// units of its fwidth; past a trimming loop it is the distance on screen to
+/// the nearest trimming edge, through the inverse of the (u, v) Jacobian, so
+/// that it stays under a pixel however obliquely the surface is seen (scaling
+/// u and v by their fwidths let a foreshortened face reach several pixels
+/// sideways past its loop). Fragments past the domain show the boundary point
+/// (their parameters are clamped); past a trimming loop, the untrimmed surface
+/// just beyond it.
 pub const SEAM_REACH: f32 = 0.75;
 
 /// The parameter domain `[u0, u1] × [v0, v1]` of a packed patch.
@@ -216,18 +221,19 @@ pub enum Reach {
 }
 
 /// How far past its patch's boundary the fragment at (u, v) lies, whose
-/// parameters change by `fu`, `fv` (fwidth) across a pixel: beyond the domain
-/// by more than [`SEAM_REACH`], or trimmed away and farther than that from
-/// every trimming edge, is [`Reach::Cut`] (distances measured with u in units
-/// of `fu` and v of `fv`).
-pub fn reach(t: &PackedNurbs, patch: usize, u: f32, v: f32, fu: f32, fv: f32) -> Reach {
+/// parameters have the screen derivatives `g`: beyond the domain by more
+/// than [`SEAM_REACH`] fwidths, or trimmed away and farther than
+/// [`SEAM_REACH`] pixels on screen from every trimming edge, is
+/// [`Reach::Cut`].
+pub fn reach(t: &PackedNurbs, patch: usize, u: f32, v: f32, g: &UvGrad) -> Reach {
+    let (fu, fv) = (g[0].abs() + g[1].abs(), g[2].abs() + g[3].abs());
     let (u0, u1, v0, v1) = domain(t, patch);
     let (ou, ov) = ((u0 - u).max(u - u1), (v0 - v).max(v - v1));
     if ou > SEAM_REACH * fu || ov > SEAM_REACH * fv {
         return Reach::Cut;
     }
     if trimmed_away(t, patch, u, v) {
-        return if near_trim(t, patch, u, v, fu, fv) { Reach::Seam } else { Reach::Cut };
+        return if near_trim(t, patch, u, v, g) { Reach::Seam } else { Reach::Cut };
     }
     if ou > 0.0 || ov > 0.0 { Reach::Seam } else { Reach::Inside }
 }
@@ -243,51 +249,54 @@ fn is_fan(patch: f32) -> bool {
 /// neighbour's own fragments win where they exist.
 pub const SEAM_DEPTH_SCALE: f32 = 1.005;
 
-/// Whether a trimming edge of the patch passes within [`SEAM_REACH`] of
-/// (u, v), in the fwidth units of [`cut_away`].
-fn near_trim(t: &PackedNurbs, patch: usize, u: f32, v: f32, fu: f32, fv: f32) -> bool {
-    if !(fu > 0.0 && fv > 0.0) {
-        return false;
-    }
-    let (sx, sy) = (1.0 / (SEAM_REACH * fu), 1.0 / (SEAM_REACH * fv));
+/// The map from a parameter offset (du, dv) to its screen offset in units of
+/// `r` pixels, `[xu, xv, yu, yv]`: the inverse of the Jacobian `g` (which
+/// maps (dx, dy) to (du, dv)) over `r`, to first order. `None` where the
+/// Jacobian is singular or not finite (the surface seen edge-on).
+#[inline]
+pub fn to_pixels(g: &UvGrad, r: f32) -> Option<[f32; 4]> {
+    let det = g[0] * g[3] - g[1] * g[2];
+    let s = 1.0 / (det * r);
+    (det != 0.0 && s.is_finite() && g.iter().all(|x| x.is_finite())).then(|| [g[3] * s, -g[1] * s, -g[2] * s, g[0] * s])
+}
+
+/// Squared screen distance, in the units of `m` ([`to_pixels`]), from the
+/// fragment at (u, v) to the parameter-space segment `e` (x0, y0, x1, y1).
+#[inline]
+fn segment_d2(m: &[f32; 4], e: &[f32; 4], u: f32, v: f32) -> f32 {
+    let (pu, pv) = (e[0] - u, e[1] - v);
+    let (qu, qv) = (e[2] - e[0], e[3] - e[1]);
+    let (ax, ay) = (m[0] * pu + m[1] * pv, m[2] * pu + m[3] * pv);
+    let (dx, dy) = (m[0] * qu + m[1] * qv, m[2] * qu + m[3] * qv);
+    let dd = dx * dx + dy * dy;
+    let k = if dd > 0.0 { (-(ax * dx + ay * dy) / dd).clamp(0.0, 1.0) } else { 0.0 };
+    let (px, py) = (ax + k * dx, ay + k * dy);
+    px * px + py * py
+}
+
+/// Whether a trimming edge of the patch passes within [`SEAM_REACH`] pixels
+/// of (u, v) on screen (parameters' screen derivatives `g`).
+fn near_trim(t: &PackedNurbs, patch: usize, u: f32, v: f32, g: &UvGrad) -> bool {
+    let Some(m) = to_pixels(g, SEAM_REACH) else { return false };
     let w = t.trim_width as usize;
     let n = t.trims[patch * w][0] as usize;
-    for e in &t.trims[patch * w + 1..patch * w + 1 + n] {
-        let (ax, ay) = ((e[0] - u) * sx, (e[1] - v) * sy);
-        let (dx, dy) = ((e[2] - e[0]) * sx, (e[3] - e[1]) * sy);
-        let dd = dx * dx + dy * dy;
-        let k = if dd > 0.0 { (-(ax * dx + ay * dy) / dd).clamp(0.0, 1.0) } else { 0.0 };
-        let (px, py) = (ax + k * dx, ay + k * dy);
-        if px * px + py * py <= 1.0 {
-            return true;
-        }
-    }
-    false
+    t.trims[patch * w + 1..patch * w + 1 + n].iter().any(|e| segment_d2(&m, e, u, v) <= 1.0)
 }
 
 /// Half the width of drawn edges, in pixels (as `fu`, `fv` measure them).
 pub const EDGE_REACH: f32 = 1.5;
 
 /// The colour (output-encoded) of the nearest drawn edge within
-/// [`EDGE_REACH`] pixels of (u, v) on `patch`, if any (twin of `on_edge` in
-/// `nurbs.wgsl`).
-pub fn on_edge(t: &PackedNurbs, patch: usize, u: f32, v: f32, fu: f32, fv: f32) -> Option<[f32; 3]> {
-    if !(fu > 0.0 && fv > 0.0) {
-        return None;
-    }
-    let (sx, sy) = (1.0 / (EDGE_REACH * fu), 1.0 / (EDGE_REACH * fv));
+/// [`EDGE_REACH`] pixels on screen of (u, v) on `patch` (parameters' screen
+/// derivatives `g`), if any (twin of `on_edge` in `nurbs.wgsl`).
+pub fn on_edge(t: &PackedNurbs, patch: usize, u: f32, v: f32, g: &UvGrad) -> Option<[f32; 3]> {
+    let m = to_pixels(g, EDGE_REACH)?;
     let w = t.edges_width as usize;
     let row = t.edges.get(patch * w..(patch + 1) * w)?;
     let n = (row[0][0] as usize).min((w - 1) / 2);
     let mut best = (2.0f32, None);
     for i in 0..n {
-        let e = row[1 + 2 * i];
-        let (ax, ay) = ((e[0] - u) * sx, (e[1] - v) * sy);
-        let (dx, dy) = ((e[2] - e[0]) * sx, (e[3] - e[1]) * sy);
-        let dd = dx * dx + dy * dy;
-        let k = if dd > 0.0 { (-(ax * dx + ay * dy) / dd).clamp(0.0, 1.0) } else { 0.0 };
-        let (px, py) = (ax + k * dx, ay + k * dy);
-        let d2 = px * px + py * py;
+        let d2 = segment_d2(&m, &row[1 + 2 * i], u, v);
         if d2 <= 1.0 && d2 < best.0 {
             let c = row[2 + 2 * i];
             best = (d2, Some([c[0], c[1], c[2]]));
@@ -599,7 +608,7 @@ impl<'a> NurbsProgram<'a> {
         let patch = (v[5].round().max(0.0) as usize).min(self.packed.patches.saturating_sub(1) as usize);
         let mode = f.params[0];
         // past the domain or trimmed away, beyond the seam reach: no colour, no depth (discarded)
-        let mut at = reach(self.packed, patch, v[3], v[4], fu, fv);
+        let mut at = reach(self.packed, patch, v[3], v[4], g);
         if at == Reach::Inside && is_fan(v[5]) {
             at = Reach::Seam;
         }
@@ -683,7 +692,7 @@ impl<'a> NurbsProgram<'a> {
             rgba = [SECTION_RGB[0], SECTION_RGB[1], SECTION_RGB[2], 255];
         }
         if flags & flag::EDGES != 0
-            && let Some(c) = on_edge(self.packed, patch, v[3], v[4], fu, fv)
+            && let Some(c) = on_edge(self.packed, patch, v[3], v[4], g)
         {
             rgba = raw(Vec3::from_array(c));
         }
@@ -877,9 +886,8 @@ impl NurbsProgram<'_> {
                 (rgba[lane], depth[lane]) = self.lane(&v, &g);
                 continue;
             }
-            let (fu, fv) = (g[0].abs() + g[1].abs(), g[2].abs() + g[3].abs());
             let patch = pf[lane] as usize;
-            let mut at = reach(t, patch, v[3], v[4], fu, fv);
+            let mut at = reach(t, patch, v[3], v[4], &g);
             if at == Reach::Inside && is_fan(v[5]) {
                 at = Reach::Seam;
             }
@@ -1573,6 +1581,47 @@ mod tests {
         }
         // blocks straddling u = 0.3 or u = 0.55 take one pass per span
         assert!(taken == 200 && refused == 0, "{taken} taken, {refused} refused");
+    }
+
+    /// The screen map is the Jacobian's inverse: a hand-worked diagonal and
+    /// shear, and none where the Jacobian is singular or not finite.
+    #[test]
+    fn to_pixels_inverts_the_jacobian() {
+        // u grows 2 a pixel right, v 4 a pixel down: (du, dv) = (1, 1) is (½, ¼) pixel
+        assert_eq!(to_pixels(&[2.0, 0.0, 0.0, 4.0], 1.0), Some([0.5, 0.0, 0.0, 0.25]));
+        // in units of 2 pixels
+        assert_eq!(to_pixels(&[2.0, 0.0, 0.0, 4.0], 2.0), Some([0.25, 0.0, 0.0, 0.125]));
+        // a shear: x → (1, 0), y → (1, 1); (du, dv) = (1, 1) is one pixel down
+        let m = to_pixels(&[1.0, 1.0, 0.0, 1.0], 1.0).unwrap();
+        assert_eq!((m[0] + m[1], m[2] + m[3]), (0.0, 1.0));
+        assert_eq!(to_pixels(&[1.0, 2.0, 2.0, 4.0], 1.0), None);
+        assert_eq!(to_pixels(&[f32::NAN, 0.0, 0.0, 1.0], 1.0), None);
+        assert_eq!(to_pixels(&[f32::INFINITY, 0.0, 0.0, 1.0], 1.0), None);
+    }
+
+    /// A fragment cut away by a trimming loop is a seam fragment within
+    /// [`SEAM_REACH`] pixels of the loop on screen and cut beyond, however
+    /// foreshortened the face: here each pixel across the edge moves (u, v)
+    /// by 0.001·(1, −1) and each pixel along it by l·(1, 1), up to twenty
+    /// times more (scaling u and v by their fwidths reached 10 pixels).
+    #[test]
+    fn the_seam_reach_is_a_distance_on_screen() {
+        let s = bicubic_6x5();
+        let mut prepared = crate::nurbs::PreparedNurbs::new(vec![s.clone()], &[s.domain()], 4);
+        // a diamond kept: |u − ½| + |v − ½| ≤ ¼; the edge (½, ¼)–(¾, ½) faces (1, −1)
+        let diamond = vec![[0.5, 0.25], [0.75, 0.5], [0.5, 0.75], [0.25, 0.5], [0.5, 0.25]];
+        prepared.set_trims(&[vec![diamond]]);
+        let t = &prepared.packed;
+        let step = 0.001f32;
+        for l in [0.001f32, 0.004, 0.02] {
+            let g: UvGrad = [step, l, -step, l];
+            for (k, want) in
+                [(-2.0, Reach::Inside), (0.3, Reach::Seam), (0.7, Reach::Seam), (0.8, Reach::Cut), (3.0, Reach::Cut)]
+            {
+                let (u, v) = (0.625 + k * step, 0.375 - k * step);
+                assert_eq!(reach(t, 0, u, v, &g), want, "{k} pixels across, {l} along");
+            }
+        }
     }
 
     /// The block path and the per-lane path give the same bits: colour and
