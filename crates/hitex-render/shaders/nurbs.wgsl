@@ -625,16 +625,18 @@ const SEAM_REACH: f32 = 0.75;
 
 // the map from a parameter offset (du, dv) to its screen offset in units of
 // r pixels, (xu, xv, yu, yv): the inverse of the Jacobian g = (du/dx, du/dy,
-// dv/dx, dv/dy) over r; ok false where g is singular (seen edge-on)
+// dv/dx, dv/dy) over r; ok false where g is singular (u and v vary along one
+// screen direction only) or not finite: |det·r| outside (1e-30, 1e30), the
+// test of `to_pixels` in cpu/nurbs.rs, made before dividing
 struct ToPixels {
     m: vec4<f32>,
     ok: bool,
 };
 
 fn to_pixels(g: vec4<f32>, r: f32) -> ToPixels {
-    let det = g.x * g.w - g.y * g.z;
-    let s = 1.0 / (det * r);
-    let ok = det != 0.0 && abs(s) <= 3.0e38;
+    let dr = (g.x * g.w - g.y * g.z) * r;
+    let ok = abs(dr) > 1.0e-30 && abs(dr) < 1.0e30;
+    let s = 1.0 / select(1.0, dr, ok);
     return ToPixels(vec4<f32>(g.w * s, -g.y * s, -g.z * s, g.x * s), ok);
 }
 

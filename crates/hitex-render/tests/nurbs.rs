@@ -441,7 +441,7 @@ fn seams_between_patches_leave_no_cracks() {
 fn faces_meeting_along_trims_leave_no_pinholes() {
     // a disc and the square around it, cut from one plane by two different
     // polylines of the same circle (67 and 48 chords, less than half a pixel
-    // apart): each face is drawn up to about a pixel past its trim, behind
+    // apart): each face is drawn up to 0.75 pixel on screen past its trim, behind
     // the other, so no pixel between the two polylines shows the background
     let s = wavy(1, 1, 2, 2);
     let circle = |n: usize, phase: f64| -> Vec<[f64; 2]> {

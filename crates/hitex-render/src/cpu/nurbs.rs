@@ -251,13 +251,17 @@ pub const SEAM_DEPTH_SCALE: f32 = 1.005;
 
 /// The map from a parameter offset (du, dv) to its screen offset in units of
 /// `r` pixels, `[xu, xv, yu, yv]`: the inverse of the Jacobian `g` (which
-/// maps (dx, dy) to (du, dv)) over `r`, to first order. `None` where the
-/// Jacobian is singular or not finite (the surface seen edge-on).
+/// maps (dx, dy) to (du, dv)) over `r`, to first order. `None` where `g` is
+/// singular (u and v vary along one screen direction only, as on a boundary
+/// fan lying on a parameter line) or not finite: |det·r| outside
+/// (10⁻³⁰, 10³⁰), the test `nurbs.wgsl` makes too.
 #[inline]
 pub fn to_pixels(g: &UvGrad, r: f32) -> Option<[f32; 4]> {
-    let det = g[0] * g[3] - g[1] * g[2];
-    let s = 1.0 / (det * r);
-    (det != 0.0 && s.is_finite() && g.iter().all(|x| x.is_finite())).then(|| [g[3] * s, -g[1] * s, -g[2] * s, g[0] * s])
+    let dr = (g[0] * g[3] - g[1] * g[2]) * r;
+    (dr.abs() > 1e-30 && dr.abs() < 1e30).then(|| {
+        let s = 1.0 / dr;
+        [g[3] * s, -g[1] * s, -g[2] * s, g[0] * s]
+    })
 }
 
 /// Squared screen distance, in the units of `m` ([`to_pixels`]), from the
@@ -283,7 +287,7 @@ fn near_trim(t: &PackedNurbs, patch: usize, u: f32, v: f32, g: &UvGrad) -> bool 
     t.trims[patch * w + 1..patch * w + 1 + n].iter().any(|e| segment_d2(&m, e, u, v) <= 1.0)
 }
 
-/// Half the width of drawn edges, in pixels (as `fu`, `fv` measure them).
+/// Half the width of drawn edges, in pixels on screen.
 pub const EDGE_REACH: f32 = 1.5;
 
 /// The colour (output-encoded) of the nearest drawn edge within
@@ -1603,7 +1607,7 @@ mod tests {
     /// [`SEAM_REACH`] pixels of the loop on screen and cut beyond, however
     /// foreshortened the face: here each pixel across the edge moves (u, v)
     /// by 0.001·(1, −1) and each pixel along it by l·(1, 1), up to twenty
-    /// times more (scaling u and v by their fwidths reached 10 pixels).
+    /// times more (scaling u and v by their fwidths reached 11 pixels).
     #[test]
     fn the_seam_reach_is_a_distance_on_screen() {
         let s = bicubic_6x5();
