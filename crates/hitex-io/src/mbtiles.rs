@@ -693,6 +693,16 @@ mod tests {
         (meta, MemorySource { width: w, height: h, rgba, name: "sample".into() })
     }
 
+    /// A test folder named after `name` holding `good.mbtiles`, hitex's
+    /// build of [`sample`]; with the sample's description and source.
+    fn built(name: &str) -> (crate::test_dir::TestDir, StoreMeta, MemorySource, PathBuf) {
+        let d = tmp(name);
+        let (meta, src) = sample();
+        let good = d.join("good.mbtiles");
+        build_mbtiles(&src, &meta, &good, &[], &|_, _| {}).unwrap();
+        (d, meta, src, good)
+    }
+
     #[test]
     fn an_mbtiles_build_holds_the_folder_builds_maps() {
         let d = tmp("build");
@@ -758,15 +768,11 @@ mod tests {
                 .collect()
         };
         assert_eq!(all(&a), all(&b));
-        let _ = std::fs::remove_dir_all(&d);
     }
 
     #[test]
     fn broken_mbtiles_files_are_named_errors() {
-        let d = tmp("broken");
-        let (meta, src) = sample();
-        let good = d.join("good.mbtiles");
-        build_mbtiles(&src, &meta, &good, &[], &|_, _| {}).unwrap();
+        let (d, meta, src, good) = built("broken");
         let err = |p: &Path| match Store::open(p) {
             Ok(s) => s.read_tile(0, 0, 0).err().map(|e| e.to_string()).unwrap_or_else(|| "ok".into()),
             Err(e) => e.to_string(),
@@ -830,7 +836,6 @@ mod tests {
             .filter(|e| e.file_name().to_string_lossy().contains("partial"))
             .collect();
         assert!(left.is_empty(), "{left:?}");
-        let _ = std::fs::remove_dir_all(&d);
     }
 
     /// A copy of `good` as another tool would have made it: no hitex row, no
@@ -851,11 +856,8 @@ mod tests {
 
     #[test]
     fn another_tools_mbtiles_reads_as_the_same_store() {
-        let d = tmp("foreign");
-        let (meta, src) = sample();
+        let (d, meta, _, good) = built("foreign");
         assert!(meta.levels >= 3, "{}", meta.levels);
-        let good = d.join("good.mbtiles");
-        build_mbtiles(&src, &meta, &good, &[], &|_, _| {}).unwrap();
         let hitex = Store::open(&good).unwrap();
         // only the finest zoom kept: every coarser level is built on reading
         let p = d.join("only14.mbtiles");
@@ -927,7 +929,6 @@ mod tests {
             &format!("DELETE FROM tiles WHERE zoom_level = 14 AND tile_column = {col} AND tile_row = {row};"),
         );
         assert!(Store::open(&p).unwrap().read_tile(meta.levels - 1, x, y).unwrap().iter().all(|&b| b == 0));
-        let _ = std::fs::remove_dir_all(&d);
     }
 
     /// Bounds at tile edges written to 7 decimals (as tools write them) lie up
@@ -935,10 +936,7 @@ mod tests {
     /// in no texel, and so no level, beyond them.
     #[test]
     fn bounds_at_tile_edges_to_seven_decimals_take_in_no_extra_texel() {
-        let d = tmp("foreign-edges");
-        let (meta, src) = sample();
-        let good = d.join("good.mbtiles");
-        build_mbtiles(&src, &meta, &good, &[], &|_, _| {}).unwrap();
+        let (d, _, _, good) = built("foreign-edges");
         // one zoom-12 tile's square (column 1625, row 2063 from the north), its zoom-17 tiles
         let p = d.join("z17.mbtiles");
         foreign_copy(
@@ -950,15 +948,11 @@ mod tests {
         let m = Store::open(&p).unwrap().meta;
         assert_eq!((m.width, m.height, m.offset), (8192, 8192, [0, 0]));
         assert_eq!((m.levels, m.tiles), (6, [12, 1625, 2063]));
-        let _ = std::fs::remove_dir_all(&d);
     }
 
     #[test]
     fn tiles_of_512_texels_are_four_maps_each() {
-        let d = tmp("foreign512");
-        let (meta, src) = sample();
-        let good = d.join("good.mbtiles");
-        build_mbtiles(&src, &meta, &good, &[], &|_, _| {}).unwrap();
+        let (d, meta, _, good) = built("foreign512");
         let hitex = Store::open(&good).unwrap();
         // zoom-13 tiles of 512 texels stitched from the zoom-14 maps, rows from the north
         let fine = meta.levels - 1;
@@ -1001,15 +995,11 @@ mod tests {
                 assert!(other.read_tile(z, x, y).unwrap() == hitex.read_tile(z, x, y).unwrap(), "{z}/{x}/{y}");
             }
         }
-        let _ = std::fs::remove_dir_all(&d);
     }
 
     #[test]
     fn foreign_mbtiles_hitex_cannot_fly_are_named_errors() {
-        let d = tmp("foreign-bad");
-        let (meta, src) = sample();
-        let good = d.join("good.mbtiles");
-        build_mbtiles(&src, &meta, &good, &[], &|_, _| {}).unwrap();
+        let (d, meta, _, good) = built("foreign-bad");
         let err = |name: &str, sql: &str| -> String {
             let p = d.join(name);
             foreign_copy(&good, &p, sql);
@@ -1060,6 +1050,5 @@ mod tests {
         // a corrupt tile names its zoom, column and row
         let e = err("corrupt.mbtiles", "UPDATE tiles SET tile_data = x'89504e47' WHERE zoom_level = 14;");
         assert!(e.contains("corrupt.mbtiles/14/") && e.contains("image"), "{e}");
-        let _ = std::fs::remove_dir_all(&d);
     }
 }
