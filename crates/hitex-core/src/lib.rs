@@ -46,3 +46,15 @@ pub fn splitmix64(mut z: u64) -> u64 {
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
 }
+
+/// Three values hashed into one ([`splitmix64`] chained).
+#[inline]
+pub(crate) fn hash3(a: u64, b: u64, c: u64) -> u64 {
+    splitmix64(splitmix64(a ^ splitmix64(b)) ^ c)
+}
+
+/// A hash as a float in [0, 1) (its top 53 bits).
+#[inline]
+pub(crate) fn unit_interval(h: u64) -> f64 {
+    (h >> 11) as f64 / (1u64 << 53) as f64
+}

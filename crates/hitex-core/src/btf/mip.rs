@@ -12,7 +12,7 @@
 //! at most `w × ⌈h / 2ᵏ⌉` entries (the sample's width times half as many
 //! rows per level, so all levels together at most double the codebook): by
 //! k-means (k-means++ seeding, a fixed seed, Lloyd iterations) on the
-//! appearance features index synthesis uses ([`super::index::features`]),
+//! appearance features index synthesis uses ([`super::features::features`]),
 //! averaged over each footprint the same way; when a level has no more
 //! distinct footprints than entries, every footprint keeps its exact mean.
 //! A cluster's entry is the mean appearance of its members' footprints, so
@@ -24,7 +24,8 @@
 //! level, and a level's index map names entries by (column, row + row0).
 
 use super::dataset::{Btf, half_bits, half_value};
-use super::index::{IndexMap, features};
+use super::features::features;
+use super::index::IndexMap;
 use crate::CoreError;
 use crate::texture::{linear_to_srgb_u8, srgb_to_linear};
 use rayon::prelude::*;

@@ -113,7 +113,7 @@ fn orthonormalise_clusters(y: &mut [f32], m: usize, members: &[Vec<usize>]) {
         .map(|(c, rows)| {
             let mut cols: Vec<Vec<f64>> =
                 (0..m).map(|j| rows.iter().map(|&t| f64::from(y[t * m + j])).collect()).collect();
-            super::index::orthonormalise(&mut cols);
+            super::features::orthonormalise(&mut cols);
             (c, cols)
         })
         .collect();
@@ -153,7 +153,7 @@ pub fn fit(btf: &Btf, opts: PcaOptions, progress: &(dyn Fn(usize, usize) + Sync)
     let cluster: Vec<usize> = if nc == 1 {
         vec![0; n]
     } else {
-        let f = super::index::features(btf, CLUSTER_FEATURE_DIMS);
+        let f = super::features::features(btf, CLUSTER_FEATURE_DIMS);
         super::mip::kmeans(&f.values, &vec![1.0; n], f.dims, nc, 0x09ca_5eed)
     };
     let mut members: Vec<Vec<usize>> = vec![Vec::new(); nc];
@@ -276,7 +276,7 @@ pub fn fit(btf: &Btf, opts: PcaOptions, progress: &(dyn Fn(usize, usize) + Sync)
                 g[b * m + a] = g[a * m + b];
             }
         }
-        let (ev, w) = super::index::jacobi(g, m);
+        let (ev, w) = super::features::jacobi(g, m);
         let mut order: Vec<usize> = (0..m).collect();
         order.sort_by(|&a, &b| ev[b].total_cmp(&ev[a]));
         for (j, &o) in order.iter().take(k).enumerate() {

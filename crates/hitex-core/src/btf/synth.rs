@@ -427,6 +427,14 @@ pub fn synthesize(
     Ok(btf)
 }
 
+/// An 8×8 corduroy on a two-elevation, four-azimuth grid: the small sample
+/// the index-synthesis, feature and seam tests share.
+#[cfg(test)]
+pub(crate) fn tiny_corduroy() -> Btf {
+    let grid = AngularGrid::new(vec![0.0, 40.0], 4).unwrap();
+    synthesize(Material::Corduroy, &SynthOptions { grid, size: 8, supersample: 1, exposure: 0.85 }, &|_| {}).unwrap()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
