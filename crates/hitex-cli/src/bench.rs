@@ -560,7 +560,7 @@ pub fn nurbs(args: NurbsArgs) -> Result<(), CliError> {
         let model = hitex_io::models::load_model(name)?;
         let density = if name == "spray" { 4 } else { 8 };
         {
-            let mut p = crate::nurbs_cmd::prepare(&model, density);
+            let mut p = crate::nurbs_cmd::prepare(&model, hitex_render::nurbs::Density::Fixed(density), None).0;
             p.mode = mode;
             p.prepared_kernels = prepared_kernels;
             prepared.push((case, p));

@@ -310,7 +310,7 @@ fn teapot_scan(
     model: &hitex_io::models::NurbsModel,
     out: &Path,
 ) -> Result<(Vec<hitex_io::stl::Triangle>, Vec<[f64; 3]>), CliError> {
-    let p = crate::nurbs_cmd::prepare(model, 24);
+    let p = crate::nurbs_cmd::prepare(model, hitex_render::nurbs::Density::Fixed(24), None).0;
     let view = hitex_render::nurbs::ModelView::default();
     let eye = p.view_camera(&view, 1.0, [-1.0, 1.0, -1.0, 1.0]).position;
     let pos = |v: &hitex_render::nurbs::NurbsVertex| glam::Vec3::from_array(v.position);
@@ -414,7 +414,7 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
                      density: u32,
                      turn: f32|
      -> Result<(Frame, f64), CliError> {
-        let mut p = crate::nurbs_cmd::prepare(model, density);
+        let mut p = crate::nurbs_cmd::prepare(model, hitex_render::nurbs::Density::Fixed(density), None).0;
         p.mode = mode;
         let cam = if crate::nurbs_cmd::has_legend(mode) {
             // framed clear of the legend strip
@@ -466,7 +466,7 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
         ma + mb,
     )?;
     let mut pull = |dir: glam::Vec3, tolerance: f32| -> Result<(Frame, f64), CliError> {
-        let mut p = crate::nurbs_cmd::prepare(&teapot, 8);
+        let mut p = crate::nurbs_cmd::prepare(&teapot, hitex_render::nurbs::Density::Fixed(8), None).0;
         p.mode = NurbsMode::Draft;
         p.pull = dir;
         p.draft_tolerance_deg = tolerance;
@@ -488,7 +488,7 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
     )?;
 
     let mut lines = |isolines: u32, sections: Option<(glam::Vec3, f32)>| -> Result<(Frame, f64), CliError> {
-        let mut p = crate::nurbs_cmd::prepare(&teapot, 8);
+        let mut p = crate::nurbs_cmd::prepare(&teapot, hitex_render::nurbs::Density::Fixed(8), None).0;
         p.mode = NurbsMode::Shaded;
         p.isolines = isolines;
         // twelve sections over the model's height
@@ -512,7 +512,7 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
     // surface coloured by its deviation from each
     let (scan, points) = teapot_scan(&teapot, out)?;
     let mut deviation = |data: hitex_io::stl::ReferenceData, name: &str| -> Result<(Frame, f64), CliError> {
-        let mut p = crate::nurbs_cmd::prepare(&teapot, 8);
+        let mut p = crate::nurbs_cmd::prepare(&teapot, hitex_render::nurbs::Density::Fixed(8), None).0;
         p.mode = NurbsMode::Deviation;
         let opts = crate::nurbs_cmd::DeviationOptions {
             grid: 48,
@@ -546,7 +546,7 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
     hitex_io::write_atomic(&part_path, MACHINED_PART)?;
     let part = hitex_io::models::load_model(&part_path.to_string_lossy())?;
     let mut continuity = |model: &hitex_io::models::NurbsModel, turn: f32| -> Result<(Frame, f64), CliError> {
-        let mut p = crate::nurbs_cmd::prepare(model, 8);
+        let mut p = crate::nurbs_cmd::prepare(model, hitex_render::nurbs::Density::Fixed(8), None).0;
         let line = crate::nurbs_cmd::set_up_continuity(&mut p, model, None, None, None)?;
         say!("  {}: {line}", model.name);
         let view = hitex_render::nurbs::ModelView { turn_deg: turn, ..Default::default() };
@@ -570,7 +570,7 @@ pub fn run(out: &Path, backend: BackendChoice, (w, h): (u32, u32)) -> Result<(),
 
     // a mirror in the procedural studio: the teapot and the machined part
     let mut studio = |model: &hitex_io::models::NurbsModel, turn: f32| -> Result<(Frame, f64), CliError> {
-        let mut p = crate::nurbs_cmd::prepare(model, 8);
+        let mut p = crate::nurbs_cmd::prepare(model, hitex_render::nurbs::Density::Fixed(8), None).0;
         p.mode = NurbsMode::Reflection;
         let view = hitex_render::nurbs::ModelView { turn_deg: turn, ..Default::default() };
         let cam = p.view_camera(&view, 1.0, crate::nurbs_cmd::view_window(side, side, false));

@@ -4,7 +4,7 @@ use crate::{Backend, CliError, open_renderer, parse_size, render_frame, save};
 use clap::{Args, Subcommand};
 use glam::Vec3;
 use hitex_io::models::{NurbsModel, load_model};
-use hitex_render::nurbs::{ModelView, NurbsMode, PreparedNurbs, UpAxis};
+use hitex_render::nurbs::{Density, MeshCut, ModelView, NurbsMode, PreparedNurbs, UpAxis};
 use hitex_render::{Job, Renderer};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -1047,15 +1047,6 @@ fn load(model: &str, chord: Option<f64>) -> Result<NurbsModel, CliError> {
     Ok(hitex_io::models::load_model_with(model, &hitex_io::models::LoadOptions { chord_tolerance: chord })?)
 }
 
-/// How finely the mesh that places a model's fragments is cut.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Density {
-    /// Each patch's grid fitted to the surface ([`hitex_render::nurbs::fitted_grids`]).
-    Auto,
-    /// An N×N grid on every patch.
-    Fixed(u32),
-}
-
 /// `--density`: `auto` or a whole number of cells a side in 1…256.
 fn parse_density(s: &str) -> Result<Density, CliError> {
     if s.eq_ignore_ascii_case("auto") {
@@ -1069,58 +1060,10 @@ fn parse_density(s: &str) -> Result<Density, CliError> {
     }
 }
 
-/// The diagonal of the box around a model's surfaces, sampled on a 9×9
-/// grid over each patch's range (control points can lie far off a
-/// trimmed face).
-pub fn model_size(model: &NurbsModel) -> f64 {
-    let (surfaces, ranges) = (model.nurbs(), model.ranges());
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for (k, s) in surfaces.iter().enumerate() {
-        let ((u0, u1), (v0, v1)) = ranges.get(k).copied().unwrap_or_else(|| s.domain());
-        for j in 0..=8 {
-            for i in 0..=8 {
-                let p = s.point(u0 + (u1 - u0) * i as f64 / 8.0, v0 + (v1 - v0) * j as f64 / 8.0);
-                if p.iter().all(|x| x.is_finite()) {
-                    for t in 0..3 {
-                        lo[t] = lo[t].min(p[t]);
-                        hi[t] = hi[t].max(p[t]);
-                    }
-                }
-            }
-        }
-    }
-    let d = (0..3).map(|t| (hi[t] - lo[t]).powi(2)).sum::<f64>().sqrt();
-    if d.is_finite() { d } else { 0.0 }
-}
-
-/// Prepares a model for rendering with the mesh `density` asks for
-/// (`auto`: each patch fitted within `mesh_chord`, by default 1/4000 of
-/// the model's size), and says how it was cut (for the user).
-pub fn prepare_with(model: &NurbsModel, density: Density, mesh_chord: Option<f64>) -> (PreparedNurbs, String) {
-    if let Density::Fixed(n) = density {
-        return (prepare(model, n), format!("{n}×{n} cells a patch"));
-    }
-    let (surfaces, ranges) = (model.nurbs(), model.ranges());
-    let tol = mesh_chord.unwrap_or_else(|| model_size(model) / 4000.0);
-    let grids = hitex_render::nurbs::fitted_grids(&surfaces, &ranges, 8, tol);
-    let (lo, hi) = grids.iter().fold((u32::MAX, 0), |(lo, hi), &(a, b)| (lo.min(a.min(b)), hi.max(a.max(b))));
-    let mut p = PreparedNurbs::trimmed_grids(surfaces, &ranges, &model.trims(), &grids);
-    if model.colors.iter().any(Option::is_some) {
-        p.set_colors(&model.colors);
-    }
-    let how = if grids.is_empty() {
-        "auto".to_string()
-    } else {
-        // three significant digits, plainly where that stays short
-        let within = if (1e-3..1e6).contains(&tol) {
-            let decimals = (2 - tol.log10().floor() as i32).max(0) as usize;
-            format!("{tol:.decimals$}")
-        } else {
-            format!("{tol:.2e}")
-        };
-        format!("auto, {lo} to {hi} cells a patch side, within {within} model units of the surface")
-    };
-    (p, how)
+/// A loaded model prepared for rendering with all its parts (trims and
+/// colours included): [`PreparedNurbs::from_parts`].
+pub fn prepare(model: &NurbsModel, density: Density, mesh_chord: Option<f64>) -> (PreparedNurbs, MeshCut) {
+    PreparedNurbs::from_parts(model.nurbs(), &model.ranges(), &model.trims(), &model.colors, density, mesh_chord)
 }
 
 /// One line on the patches whose trims were simplified to fit the trim
@@ -1143,15 +1086,6 @@ pub fn simplified_trims_warning(list: &[hitex_render::nurbs::TrimSimplified]) ->
     }
     line += ")";
     Some(line)
-}
-
-/// Prepares a model for rendering on an N×N grid per patch.
-pub fn prepare(model: &NurbsModel, density: u32) -> PreparedNurbs {
-    let mut p = PreparedNurbs::trimmed(model.nurbs(), &model.ranges(), &model.trims(), density);
-    if model.colors.iter().any(Option::is_some) {
-        p.set_colors(&model.colors);
-    }
-    p
 }
 
 /// Runs a `hitex nurbs` subcommand.
@@ -1196,7 +1130,7 @@ pub fn run(cmd: NurbsCommand) -> Result<(), CliError> {
             for w in &model.warnings {
                 eprintln!("hitex: warning: {}: {w}", model.name);
             }
-            let (mut p, mesh) = prepare_with(&model, density, a.mesh_chord);
+            let (mut p, mesh) = prepare(&model, density, a.mesh_chord);
             if let Some(w) = simplified_trims_warning(&p.packed.trims_simplified) {
                 eprintln!("hitex: warning: {}: {w}", model.name);
             }

@@ -255,7 +255,7 @@ fn open(input: &str, mode: Option<&str>, aspect: f32) -> Result<Content, CliErro
         _ if hitex_core::btf::synth::Material::parse(input).is_some() => open_btf(input, mode, aspect),
         _ => {
             let model = hitex_io::models::load_model(input)?;
-            let (mut prepared, _) = crate::nurbs_cmd::prepare_with(&model, crate::nurbs_cmd::Density::Auto, None);
+            let (mut prepared, _) = crate::nurbs_cmd::prepare(&model, hitex_render::nurbs::Density::Auto, None);
             if let Some(m) = mode {
                 prepared.mode = pick(&NURBS_MODES, NurbsMode::name, m)?;
             }

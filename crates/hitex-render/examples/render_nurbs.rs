@@ -6,7 +6,7 @@
 //! cargo run --release -p hitex-render --example render_nurbs -- part.igs out-dir
 //! ```
 
-use hitex_render::nurbs::{NurbsMode, PreparedNurbs};
+use hitex_render::nurbs::{Density, NurbsMode, PreparedNurbs};
 use hitex_render::{AnyRenderer, BackendChoice, Job, Renderer};
 use std::path::{Path, PathBuf};
 
@@ -24,8 +24,11 @@ pub fn run(model: &str, out: &Path, size: u32) -> Result<([f64; 3], [f64; 3]), B
     let (u, v) = (0.5 * (u0 + u1), 0.5 * (v0 + v1));
     let point = first.surface.point(u, v);
     let normal = first.surface.normal(u, v);
-    // prepared for rendering with the patches' trims, tessellated 8×8 per patch
-    let mut prepared = PreparedNurbs::trimmed(m.nurbs(), &m.ranges(), &m.trims(), 8);
+    // prepared for rendering with the patches' trims and the faces' colours,
+    // each patch's mesh fitted to its surface
+    let (mut prepared, cut) =
+        PreparedNurbs::from_parts(m.nurbs(), &m.ranges(), &m.trims(), &m.colors, Density::Auto, None);
+    println!("mesh: {cut}");
     let mut renderer = AnyRenderer::open(BackendChoice::Auto)?;
     std::fs::create_dir_all(out)?;
     for (name, mode) in [("shaded", NurbsMode::Shaded), ("isophotes", NurbsMode::Isophote)] {

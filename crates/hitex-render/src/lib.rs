@@ -27,6 +27,7 @@ pub mod gpu;
 pub mod job;
 pub mod legend;
 pub mod nurbs;
+mod nurbs_model;
 pub mod prepare;
 pub mod terrain;
 

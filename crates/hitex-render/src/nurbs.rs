@@ -7,6 +7,8 @@ use glam::{Mat4, Vec3};
 use hitex_core::nurbs::NurbsSurface;
 use hitex_core::scene::Camera;
 
+pub use crate::nurbs_model::{Density, MeshCut, model_size};
+
 /// The degrees with straight-line kernels in both fragment programs (the
 /// paper's prepared degrees); others run the any-degree loops, or are raised
 /// to the nearest prepared degree above them by [`PreparedNurbs::elevate_to_prepared`].
