@@ -144,8 +144,10 @@ mod tests {
         m.surfaces.truncate(1);
         m.surfaces[0].trim = vec![vec![[0.2, 0.2], [0.8, 0.2], [0.8, 0.8], [0.2, 0.8], [0.2, 0.2]]];
         m.colors = vec![Some([1.0, 0.0, 0.0])];
-        let (p, _) = prepare(&m, Density::Fixed(4));
-        assert!(p.packed.trims[0][0] > 0.0, "the trim loop was dropped");
-        assert_eq!(p.packed.colors[0], Some([1.0, 0.0, 0.0]));
+        for density in [Density::Fixed(4), Density::Auto] {
+            let (p, _) = prepare(&m, density);
+            assert!(p.packed.trims[0][0] > 0.0, "{density:?}: the trim loop was dropped");
+            assert_eq!(p.packed.colors[0], Some([1.0, 0.0, 0.0]), "{density:?}");
+        }
     }
 }

@@ -4,6 +4,7 @@
 
 use super::*;
 
+/// sRGB code → linear light.
 pub(super) fn linear_lut() -> [f32; 256] {
     let mut t = [0.0; 256];
     for (i, v) in t.iter_mut().enumerate() {
