@@ -171,8 +171,10 @@ pub struct SrgbEncoder {
     /// more (the tables' source, kept for the tests).
     #[cfg(test)]
     threshold: [f32; 256],
-    /// `base[i]`: the code of the smallest value in cell `i`.
-    base: [u8; ENCODE_CELLS],
+    /// `base[i]`: the code of the smallest value in cell `i`, as a 32-bit
+    /// word so that lane loops read the table with vector gathers (bytes
+    /// were read lane by lane, a load and an insert each).
+    base: [u32; ENCODE_CELLS],
     /// `step[i]`: the threshold of code `base[i] + 1` where it lies in cell
     /// `i`, else +∞.
     step: [f32; ENCODE_CELLS],
@@ -189,11 +191,18 @@ impl SrgbEncoder {
     /// [`linear_to_srgb_u8`].
     #[inline(always)]
     pub fn encode(&self, l: f32) -> u8 {
+        self.code(l) as u8
+    }
+
+    /// [`linear_to_srgb_u8`] as a 32-bit word (0..=255), for lane loops
+    /// that put the codes of a pixel together in one word.
+    #[inline(always)]
+    pub fn code(&self, l: f32) -> u32 {
         // NaN → 0 (max returns the other operand), then [0, 1]
         #[allow(clippy::manual_clamp)] // clamp would keep NaN
         let l = l.max(0.0).min(1.0);
         let i = Self::cell(l);
-        self.base[i] + (l >= self.step[i]) as u8
+        self.base[i] + (l >= self.step[i]) as u32
     }
 }
 
@@ -231,13 +240,13 @@ static SRGB_ENCODE: LazyLock<SrgbEncoder> = LazyLock::new(|| {
         f32::from_bits(lo)
     };
     let code = |l: f32| threshold[1..].iter().filter(|&&t| l >= t).count();
-    let mut base = [0u8; ENCODE_CELLS];
+    let mut base = [0u32; ENCODE_CELLS];
     let mut step = [f32::INFINITY; ENCODE_CELLS];
     let mut next = low_edge(0);
     for i in 0..ENCODE_CELLS {
         let (lo, hi) = (next, if i + 1 < ENCODE_CELLS { low_edge(i + 1) } else { f32::INFINITY });
         let c = code(lo);
-        base[i] = c as u8;
+        base[i] = c as u32;
         if c < 255 && threshold[c + 1] < hi {
             step[i] = threshold[c + 1];
         }

@@ -689,14 +689,16 @@ impl BlockShader<VARYINGS> for BtfProgram<'_> {
     }
 }
 
-/// The live lanes of linear RGB `c`, tone-mapped by `tone` and sRGB-encoded.
+/// The live lanes of linear RGB `c`, tone-mapped by `tone` and sRGB-encoded
+/// (all lanes encoded as one lane loop a channel, [`super::simd::encode_rgb`]).
 #[inline(always)]
 fn encode_lanes(c: &[Lanes; 3], live: u16, rgba: &mut [[u8; 4]; LANES], tone: impl Fn(f32) -> f32) {
     let enc = hitex_core::texture::srgb_encoder();
-    let e = |x: f32| enc.encode(tone(x));
+    let toned = [lanes!(|i| tone(c[0][i])), lanes!(|i| tone(c[1][i])), lanes!(|i| tone(c[2][i]))];
+    let codes = super::simd::encode_rgb(enc, &toned);
     for i in 0..LANES {
         if live & (1 << i) != 0 {
-            rgba[i] = [e(c[0][i]), e(c[1][i]), e(c[2][i]), 255];
+            rgba[i] = codes[i];
         }
     }
 }

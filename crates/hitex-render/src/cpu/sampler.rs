@@ -134,14 +134,37 @@ impl<'a> LaneSampler<'a> {
 
     /// Texel index per lane on an axis of `n` texels under the wrap mode,
     /// as `hitex_core::texture::wrap_index` (indices are whole floats).
+    ///
+    /// The sampler's own indices lie within a period of `[0, n)` (its
+    /// coordinates are reduced first, and a tap steps one texel out at
+    /// most): there a repeat or mirror period is added or taken once, by a
+    /// compare and a select, instead of the division and floor of the
+    /// general formula, whose result it is exactly (whole floats below 2²⁴,
+    /// where `f / n` cannot round across an integer). A block with any lane
+    /// farther out (or NaN) takes the general formula.
     #[inline(always)]
     fn wrap(&self, f: &Lanes, n: &Lanes) -> Lanes {
         let mut o = [0.0; LANES];
+        // lanes within one period of [0, p) either side
+        let near = |p: &Lanes| {
+            let mut all = true;
+            for i in 0..LANES {
+                all &= (f[i] >= -p[i]) & (f[i] < 2.0 * p[i]);
+            }
+            all
+        };
         match self.opts.wrap {
             Wrap::Repeat => {
-                for i in 0..LANES {
-                    let m = f[i] - n[i] * simd::floor(f[i] / n[i]);
-                    o[i] = if (f[i] >= 0.0) & (f[i] < n[i]) { f[i] } else { m };
+                if near(n) {
+                    for i in 0..LANES {
+                        let m = if f[i] < 0.0 { f[i] + n[i] } else { f[i] };
+                        o[i] = if m >= n[i] { m - n[i] } else { m };
+                    }
+                } else {
+                    for i in 0..LANES {
+                        let m = f[i] - n[i] * simd::floor(f[i] / n[i]);
+                        o[i] = if (f[i] >= 0.0) & (f[i] < n[i]) { f[i] } else { m };
+                    }
                 }
             }
             Wrap::Clamp => {
@@ -150,11 +173,19 @@ impl<'a> LaneSampler<'a> {
                 }
             }
             Wrap::Mirror => {
-                for i in 0..LANES {
-                    let p = 2.0 * n[i];
-                    let m = f[i] - p * simd::floor(f[i] / p);
-                    let m = if m >= n[i] { p - 1.0 - m } else { m };
-                    o[i] = if (f[i] >= 0.0) & (f[i] < n[i]) { f[i] } else { m };
+                let p: Lanes = lanes!(|i| 2.0 * n[i]);
+                if near(&p) {
+                    for i in 0..LANES {
+                        let m = if f[i] < 0.0 { f[i] + p[i] } else { f[i] };
+                        let m = if m >= p[i] { m - p[i] } else { m };
+                        o[i] = if m >= n[i] { p[i] - 1.0 - m } else { m };
+                    }
+                } else {
+                    for i in 0..LANES {
+                        let m = f[i] - p[i] * simd::floor(f[i] / p[i]);
+                        let m = if m >= n[i] { p[i] - 1.0 - m } else { m };
+                        o[i] = if (f[i] >= 0.0) & (f[i] < n[i]) { f[i] } else { m };
+                    }
                 }
             }
         }
@@ -446,6 +477,34 @@ mod tests {
                         }
                         let tol = if filter == Filter::Trilinear { 2e-5 } else { 1e-6 };
                         assert!(worst <= tol, "{cs:?} {filter:?} {wrap:?} {level_rule:?}: {worst}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// Both ways of wrapping (a period added or taken once, near the
+    /// texture; the general formula, farther out) give the integer wrap of
+    /// `hitex_core::texture::wrap_index`, on blocks wholly near, wholly far
+    /// and mixed.
+    #[test]
+    fn wrap_matches_the_integer_wrap_near_and_far() {
+        let pyr = pyramid(ColorSpace::Linear);
+        for wrap in [Wrap::Repeat, Wrap::Mirror, Wrap::Clamp] {
+            let s = LaneSampler::new(&pyr, SamplerOptions { wrap, ..Default::default() });
+            for n in [1i32, 2, 3, 7, 64, 1000, 16384] {
+                let span = 5 * n + 6;
+                let all: Vec<i32> = (-2 * n - 3..=3 * n + 3).collect();
+                let far: Vec<i32> = (0..LANES as i32).map(|k| k * span / 3 - 2 * span).collect();
+                for (k, chunk) in all.chunks(LANES).chain(std::iter::once(&far[..])).enumerate() {
+                    let mut f: Lanes = std::array::from_fn(|i| chunk[i % chunk.len()] as f32);
+                    if k % 5 == 4 {
+                        f[7] = (40 * n + 11) as f32; // one lane far out: the general formula
+                    }
+                    let got = s.wrap(&f, &[n as f32; LANES]);
+                    for i in 0..LANES {
+                        let want = hitex_core::texture::sampler::wrap_index(f[i] as i32, n, wrap) as f32;
+                        assert_eq!(got[i].to_bits(), want.to_bits(), "{wrap:?} n {n} f {}", f[i]);
                     }
                 }
             }

@@ -322,7 +322,7 @@ pub fn encode_rgb(enc: &hitex_core::texture::SrgbEncoder, c: &[Lanes; 3]) -> [[u
     let mut word = [0xff00_0000u32; LANES];
     for ch in 0..3 {
         for i in 0..LANES {
-            word[i] |= (enc.encode(c[ch][i]) as u32) << (8 * ch);
+            word[i] |= enc.code(c[ch][i]) << (8 * ch);
         }
     }
     // little-endian byte order of the word: R, G, B, A
@@ -474,6 +474,36 @@ pub fn pow(x: f32, y: f32) -> f32 {
     exp2(y * log2(x))
 }
 
+/// `x^y` per lane for `x` in [0, ∞): by squarings and products when `y` is
+/// a whole number from 1 to 1024 (the usual specular exponents: 32 is five
+/// squarings, where [`pow`] takes a logarithm with a division and an
+/// exponential, a tenth of a textured frame), else [`pow`] lane by lane.
+/// Either rounds differently from a GPU's `pow` (as [`pow`] does), and
+/// gives the same bits at every level.
+#[inline(always)]
+pub fn pow_lanes(x: &Lanes, y: f32) -> Lanes {
+    if !((1.0..=1024.0).contains(&y) && y == floor(y)) {
+        return lanes!(|i| pow(x[i], y));
+    }
+    let mut e = whole_u32(y);
+    let mut base = *x;
+    let mut r: Option<Lanes> = None;
+    loop {
+        if e & 1 == 1 {
+            r = Some(match r {
+                None => base,
+                Some(r) => lanes!(|i| r[i] * base[i]),
+            });
+        }
+        e >>= 1;
+        if e == 0 {
+            // e ≥ 1 at the start: a bit was set on the way
+            return r.unwrap_or(base);
+        }
+        base = lanes!(|i| base[i] * base[i]);
+    }
+}
+
 /// `t as u32` that vectorises: `hitex_core::texture::sampler::to_u32_clamped`
 /// (NaN and negatives 0, fractions cut).
 #[inline(always)]
@@ -515,6 +545,38 @@ pub fn ddy(a: &Lanes) -> Lanes {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Whole exponents by squaring agree with `powf` within their rounding
+    /// (a squaring doubles the relative error: about 2y half-ulps in all)
+    /// and with [`pow`] within its; zero stays zero; other exponents are
+    /// [`pow`]'s bits. (Results below f32's normal range lose their relative
+    /// precision: an absolute 1e-37 covers them.)
+    #[test]
+    fn whole_powers_by_squaring() {
+        let x: Lanes = std::array::from_fn(|i| i as f32 / 15.0);
+        for y in [1.0f32, 2.0, 3.0, 5.0, 8.0, 32.0, 48.0, 100.0, 1024.0] {
+            let got = pow_lanes(&x, y);
+            for i in 0..LANES {
+                let want = (x[i] as f64).powf(y as f64) as f32;
+                let l = if x[i] > 0.0 { (x[i] as f64).log2().abs() as f32 } else { 0.0 };
+                assert!((got[i] - want).abs() <= 1.2e-7 * y * want + 1e-37, "{}^{y}: {} {want}", x[i], got[i]);
+                let p = pow(x[i], y);
+                assert!(
+                    (got[i] - p).abs() <= 4e-7 * y * (1.0 + l) * want + 1e-37,
+                    "{}^{y} vs pow: {} {p}",
+                    x[i],
+                    got[i]
+                );
+            }
+            assert_eq!(got[0], 0.0);
+        }
+        for y in [0.5f32, 31.5, 2000.0] {
+            let got = pow_lanes(&x, y);
+            for i in 0..LANES {
+                assert_eq!(got[i].to_bits(), pow(x[i], y).to_bits());
+            }
+        }
+    }
 
     #[test]
     fn names_round_trip_and_detection_is_available() {

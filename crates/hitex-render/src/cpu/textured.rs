@@ -229,11 +229,12 @@ impl BlockShader<VARYINGS> for TexturedProgram<'_> {
                             z: zip(&to_light.z, &view.z, |a, b| a + b),
                         });
                         let nh = n.dot(&h);
+                        // (n·h)^shininess: whole exponents by squaring, others
+                        // as exp2(shininess·log2 n·h), a GPU's pow
+                        let p = simd::pow_lanes(&map(&nh, |x| x.max(0.0)), m.shininess);
                         let mut s = [0.0; LANES];
                         for i in 0..LANES {
-                            // exp2(shininess·log2 n·h), as a GPU's pow
-                            let p = simd::pow(nh[i].max(0.0), m.shininess);
-                            s[i] = if ndl[i] > 0.0 { p * atten[i] * m.specular } else { 0.0 };
+                            s[i] = if ndl[i] > 0.0 { p[i] * atten[i] * m.specular } else { 0.0 };
                         }
                         for c in 0..3 {
                             for i in 0..LANES {
