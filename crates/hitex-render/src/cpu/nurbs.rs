@@ -734,10 +734,14 @@ impl NurbsProgram<'_> {
         let pf = simd::map(&b.v[5], |x| x.round().max(0.0).min(last));
         // the lanes' parameters clamped into their patches' domains
         let (mut u, mut v) = (b.v[3], b.v[4]);
-        // (patch, su, sv, lanes) of each group: patches in order of their
-        // first lanes, a patch's span pairs likewise
-        let mut groups = [(0usize, 0usize, 0usize, 0u16); LANES];
+        // the kernel runs, `(patch, su, sv, spans across, spans down, lanes)`:
+        // patches in order of their first lanes; a patch's lanes in one run
+        // over the window of control points of all their spans where that
+        // costs less ([`window`]), else a run per span pair (1 × 1 spans)
+        let mut runs = [(0usize, 0usize, 0usize, 1usize, 1usize, 0u16); LANES];
         let mut count = 0;
+        // the knot spans of the lanes of window runs
+        let (mut su_of, mut sv_of) = ([0.0f32; LANES], [0.0f32; LANES]);
         // lanes on patches the kernel does not take; lanes past their
         // domain or on a boundary fan; lanes on trimmed patches
         let (mut other, mut outside, mut trimmed) = (0u16, 0u16, 0u16);
@@ -783,9 +787,21 @@ impl NurbsProgram<'_> {
                 albedo_of[2][lane] = a.z;
             }
             let sg = span_groups(ku, kv, nu, nv, &u, &v, members)?;
-            for &(su, sv, lanes) in sg.iter() {
-                groups[count] = (patch, su, sv, lanes);
+            if let Some((su, sv, w, h)) = window(&sg, members) {
+                runs[count] = (patch, su, sv, w, h, members);
                 count += 1;
+                let mut m = members;
+                while m != 0 {
+                    let lane = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    su_of[lane] = sg.su[lane] as f32;
+                    sv_of[lane] = sg.sv[lane] as f32;
+                }
+            } else {
+                for &(su, sv, lanes) in sg.iter() {
+                    runs[count] = (patch, su, sv, 1, 1, lanes);
+                    count += 1;
+                }
             }
         }
         // the arithmetic, one register of lanes at a time, once per group
@@ -793,20 +809,40 @@ impl NurbsProgram<'_> {
         let cam = Vec3::new(f.camera[0], f.camera[1], f.camera[2]);
         let mut o = BicubicOut::default();
         let mut g = BicubicOut::default();
-        // past four groups, a lane alone in its group costs less on its own
+        // past four runs, a lane alone in its run costs less on its own
         // (the per-lane program, below) than a kernel run for it
         let mut solo = 0u16;
         let mut filled = false;
-        for &(patch, su, sv, lanes) in &groups[..count] {
+        // lanes that may be seam fragments: their runs also give the depth pushed back
+        let seams = outside | trimmed;
+        for &(patch, su, sv, w, h, lanes) in &runs[..count] {
             if count > 4 && lanes.count_ones() == 1 {
                 solo |= lanes;
                 continue;
             }
             let pr = patch_ref(t, patch);
             let (ku, kv, cp, nu) = (pr.ku, pr.kv, pr.cp, pr.nu);
-            // the first group's lanes straight into the output, the others' copied over
+            // the first run's lanes straight into the output, the others' copied over
             let out = if filled { &mut g } else { &mut o };
-            simd::run(BicubicOp { su, sv, lanes, u: &u, v: &v, ku, kv, cp, nu, cam, light, m: &f.view_proj, out });
+            let window = Window { w, h, su: &su_of, sv: &sv_of };
+            let seams = seams & lanes;
+            simd::run(BicubicOp {
+                su,
+                sv,
+                window,
+                lanes,
+                seams,
+                u: &u,
+                v: &v,
+                ku,
+                kv,
+                cp,
+                nu,
+                cam,
+                light,
+                m: &f.view_proj,
+                out,
+            });
             if !filled {
                 filled = true;
                 continue;
@@ -820,6 +856,7 @@ impl NurbsProgram<'_> {
                     (&mut o.ny, &g.ny),
                     (&mut o.nz, &g.nz),
                     (&mut o.depth, &g.depth),
+                    (&mut o.seam_depth, &g.seam_depth),
                     (&mut o.ndl, &g.ndl),
                     (&mut o.spec, &g.spec),
                     (&mut o.len, &g.len),
@@ -877,9 +914,10 @@ impl NurbsProgram<'_> {
         }
         depth.copy_from_slice(&d);
         // lanes cut away (past the domain or trimmed, beyond the seam reach)
-        // are discarded; seam lanes and the lanes above take the per-lane path
-        // (a lane within its domain on an untrimmed patch and off any fan is
-        // inside: it needs no test)
+        // are discarded; seam lanes keep their colour (that of the clamped
+        // parameters, as the per-lane program's) at the depth pushed back;
+        // the lanes above take the per-lane path (a lane within its domain on
+        // an untrimmed patch and off any fan is inside: it needs no test)
         let mut special = (trimmed | outside | degenerate) & b.live;
         while special != 0 {
             let lane = special.trailing_zeros() as usize;
@@ -898,8 +936,10 @@ impl NurbsProgram<'_> {
             if at == Reach::Cut {
                 rgba[lane] = [0, 0, 0, 0];
                 depth[lane] = f32::NAN;
-            } else if at == Reach::Seam || degenerate & (1 << lane) != 0 {
+            } else if degenerate & (1 << lane) != 0 {
                 (rgba[lane], depth[lane]) = self.lane(&v, &g);
+            } else if at == Reach::Seam {
+                depth[lane] = o.seam_depth[lane];
             }
         }
         Some(())
@@ -919,6 +959,9 @@ struct BicubicOut {
     ny: Lanes,
     nz: Lanes,
     depth: Lanes,
+    /// The depth of a seam fragment: the point pushed back by
+    /// [`SEAM_DEPTH_SCALE`] (in the registers holding `seams` lanes).
+    seam_depth: Lanes,
     ndl: Lanes,
     spec: Lanes,
     len: Lanes,
@@ -933,11 +976,16 @@ struct BicubicOut {
 /// rule), [`exact_normal`] and [`NurbsProgram::lane`] in the same order, with
 /// the knots and control points broadcast.
 struct BicubicOp<'a> {
+    /// The knot spans (of the window's first column and row).
     su: usize,
     sv: usize,
+    window: Window<'a>,
     /// The group's lanes: registers holding none of them are skipped (their
     /// lanes are another group's, or read by nobody).
     lanes: u16,
+    /// Lanes that may be seam fragments: the registers holding one also
+    /// give the seam depth.
+    seams: u16,
     u: &'a Lanes,
     v: &'a Lanes,
     ku: &'a [f32],
@@ -1063,6 +1111,102 @@ fn point_partials<S: pulp::Simd>(
     [sp, r.quotient(&a[1], sp, rw), r.quotient(&a[2], sp, rw)]
 }
 
+/// Lanes of one patch on several knot spans, evaluated in one run over the
+/// window of control points all their spans cover: each lane's basis
+/// functions sit at its span's place in the window, zero elsewhere.
+struct Window<'a> {
+    /// Spans across (u) and down (v): 1 × 1 for lanes on one span pair.
+    w: usize,
+    h: usize,
+    /// The lanes' spans, as floats.
+    su: &'a Lanes,
+    sv: &'a Lanes,
+}
+
+/// The most spans a window run covers along a direction.
+const WINDOW_SPANS: usize = 4;
+
+/// The window run of a patch's lanes `members` on the span pairs `sg`,
+/// `(first su, first sv, spans across, spans down)`, when one run over the
+/// window costs less than a run per pair: the sums over the control points
+/// (about 0.7 of a run) grow with the window's area, the rest does not.
+fn window(sg: &SpanGroups, members: u16) -> Option<(usize, usize, usize, usize)> {
+    if sg.len < 2 {
+        return None;
+    }
+    let (mut a0, mut a1, mut b0, mut b1) = (u32::MAX, 0, u32::MAX, 0);
+    let mut m = members;
+    while m != 0 {
+        let lane = m.trailing_zeros() as usize;
+        m &= m - 1;
+        (a0, a1) = (a0.min(sg.su[lane]), a1.max(sg.su[lane]));
+        (b0, b1) = (b0.min(sg.sv[lane]), b1.max(sg.sv[lane]));
+    }
+    let (w, h) = ((a1 - a0 + 1) as usize, (b1 - b0 + 1) as usize);
+    // in tenths of a 4×4 run: 3 + 0.7 · area / 16, against one a pair
+    let cost = 48 + 7 * (w + 3) * (h + 3);
+    (w <= WINDOW_SPANS && h <= WINDOW_SPANS && cost < 160 * sg.len).then_some((a0 as usize, b0 as usize, w, h))
+}
+
+/// A window's basis functions and first derivatives ([`window_basis`]).
+type WindowBasis<S> = [[<S as pulp::Simd>::f32s; WINDOW_SPANS + 3]; 2];
+
+/// The cubic basis functions and first derivatives of every lane placed at
+/// its span's columns of a window of `n` spans from span `s0`
+/// (`spans`: each lane's span), zero elsewhere: [`basis3`] once per span.
+#[inline(always)]
+fn window_basis<S: pulp::Simd>(r: R<S>, s0: usize, n: usize, x: S::f32s, spans: S::f32s, k: &[f32]) -> WindowBasis<S> {
+    let zero = r.k(0.0);
+    let mut b = [[zero; WINDOW_SPANS + 3]; 2];
+    for i in 0..n {
+        let on = r.0.equal_f32s(spans, r.k((s0 + i) as f32));
+        let [f, d] = basis3(r, s0 + i, x, k);
+        for j in 0..4 {
+            b[0][i + j] = r.0.select_f32s(on, f[j], b[0][i + j]);
+            b[1][i + j] = r.0.select_f32s(on, d[j], b[1][i + j]);
+        }
+    }
+    b
+}
+
+/// [`point_partials`] over a window of `n` = (across, down) spans from the
+/// spans `s0`, the basis placed by [`window_basis`]: the sums take the
+/// same terms in the same order for every lane, with zero terms before and
+/// after (adding them leaves every bit unchanged).
+#[inline(always)]
+fn window_partials<S: pulp::Simd>(
+    r: R<S>,
+    s0: (usize, usize),
+    n: (usize, usize),
+    (bu, bv): &(WindowBasis<S>, WindowBasis<S>),
+    cp: &[[f32; 4]],
+    nu: usize,
+) -> [[S::f32s; 3]; 3] {
+    let (i0, j0) = (s0.0 - 3, s0.1 - 3);
+    let zero = r.k(0.0);
+    let mut a = [[zero; 4]; 3];
+    for s in 0..n.1 + 3 {
+        let row = (j0 + s) * nu + i0;
+        let mut t0 = [zero; 4];
+        let mut t1 = [zero; 4];
+        for q in 0..n.0 + 3 {
+            let c = cp[row + q];
+            for k in 0..4 {
+                t0[k] = r.add(t0[k], r.mul(r.k(c[k]), bu[0][q]));
+                t1[k] = r.add(t1[k], r.mul(r.k(c[k]), bu[1][q]));
+            }
+        }
+        for k in 0..4 {
+            a[0][k] = r.add(a[0][k], r.mul(t0[k], bv[0][s]));
+            a[1][k] = r.add(a[1][k], r.mul(t1[k], bv[0][s]));
+            a[2][k] = r.add(a[2][k], r.mul(t0[k], bv[1][s]));
+        }
+    }
+    let rw = r.div(r.k(1.0), a[0][3]);
+    let sp = [r.mul(a[0][0], rw), r.mul(a[0][1], rw), r.mul(a[0][2], rw)];
+    [sp, r.quotient(&a[1], sp, rw), r.quotient(&a[2], sp, rw)]
+}
+
 /// Groups the `lanes` by their knot-span pair: `(su, sv, lanes of the
 /// pair)`, the first group the first lane's (`None` when no lane is given).
 /// A lane is in span s when k[s] ≤ x < k[s+1], or at the domain's end when
@@ -1076,7 +1220,7 @@ fn span_groups(ku: &[f32], kv: &[f32], nu: usize, nv: usize, u: &Lanes, v: &Lane
     let (su, sv) = (lane_spans(ku, nu, u), lane_spans(kv, nv, v));
     let id: [u32; LANES] = std::array::from_fn(|lane| su[lane] << 16 | sv[lane]);
     // the groups, each led by its first lane
-    let mut groups = SpanGroups { groups: [(0, 0, 0); LANES], len: 0 };
+    let mut groups = SpanGroups { groups: [(0, 0, 0); LANES], len: 0, su, sv };
     let mut rest = lanes;
     while rest != 0 {
         let first = rest.trailing_zeros() as usize;
@@ -1124,6 +1268,9 @@ fn lane_spans(k: &[f32], n: usize, x: &Lanes) -> [u32; LANES] {
 struct SpanGroups {
     groups: [(usize, usize, u16); LANES],
     len: usize,
+    /// The spans of every lane (those of the lanes grouped).
+    su: [u32; LANES],
+    sv: [u32; LANES],
 }
 
 impl SpanGroups {
@@ -1287,7 +1434,24 @@ impl pulp::WithSimd for BicubicOp<'_> {
                 continue;
             }
             let zero = r.k(0.0);
-            let [sp, s_u, s_v] = point_partials(r, self.su, self.sv, u[c], v[c], self.ku, self.kv, self.cp, self.nu);
+            let win = &self.window;
+            let [sp, s_u, s_v] = if win.w == 1 && win.h == 1 {
+                point_partials(r, self.su, self.sv, u[c], v[c], self.ku, self.kv, self.cp, self.nu)
+            } else {
+                let spans = (S::as_simd_f32s(win.su).0[c], S::as_simd_f32s(win.sv).0[c]);
+                let b = (
+                    window_basis(r, self.su, win.w, u[c], spans.0, self.ku),
+                    window_basis(r, self.sv, win.h, v[c], spans.1, self.kv),
+                );
+                window_partials(r, (self.su, self.sv), (win.w, win.h), &b, self.cp, self.nu)
+            };
+            // the depth of a seam fragment: the point pushed back from the camera
+            if holds(self.seams, c, w) {
+                let (cam, scale) = ([r.k(self.cam.x), r.k(self.cam.y), r.k(self.cam.z)], r.k(SEAM_DEPTH_SCALE));
+                let at = [0, 1, 2].map(|k| r.add(cam[k], r.mul(r.sub(sp[k], cam[k]), scale)));
+                S::as_mut_simd_f32s(&mut o.seam_depth).0[c] =
+                    r.div(r.clip_row(self.m, 2, at), r.clip_row(self.m, 3, at));
+            }
             // exact normal (degenerate lanes are redone per lane by the caller)
             let cr = [
                 r.sub(r.mul(s_u[1], s_v[2]), r.mul(s_u[2], s_v[1])),
@@ -1669,6 +1833,7 @@ mod tests {
         )
         .unwrap();
         let (mut checked, mut many_spans, mut mixed, mut cut, mut quartic) = (0, 0, 0, 0, 0);
+        let (mut windowed, mut seams) = (0, 0);
         for mode in [SHADED, ISOPHOTE, NORMAL] {
             let mut frame = prepared.frame(&cam, 64, 48);
             frame.params[0] = mode;
@@ -1712,14 +1877,23 @@ mod tests {
                     mixed += 1;
                 }
                 b.fill_grads([3, 4]);
-                if k >= 200 {
+                {
                     // patch 0: its header and knots lead the packed rows
                     let t = &prepared.packed;
                     let (nu, nv) = (t.control[0][2] as usize, t.control[0][3] as usize);
                     let ku = &t.knots_u[1..1 + t.knots_u[0] as usize];
                     let kv = &t.knots_v[1..1 + t.knots_v[0] as usize];
-                    if span_groups(ku, kv, nu, nv, &b.v[3], &b.v[4], b.live).is_some_and(|g| g.len > 4) {
+                    let mut on0 = 0u16;
+                    for lane in 0..LANES {
+                        on0 |= ((b.v[5][lane] == 0.0) as u16) << lane;
+                    }
+                    let clamp = |x: &Lanes| simd::map(x, |x| x.clamp(0.0, 1.0));
+                    let (u, v) = (clamp(&b.v[3]), clamp(&b.v[4]));
+                    if k >= 200 && span_groups(ku, kv, nu, nv, &b.v[3], &b.v[4], b.live).is_some_and(|g| g.len > 4) {
                         many_spans += 1;
+                    }
+                    if let Some(g) = span_groups(ku, kv, nu, nv, &u, &v, b.live & on0) {
+                        windowed += window(&g, b.live & on0).is_some() as usize;
                     }
                 }
                 let mut rgba = [[0u8; 4]; LANES];
@@ -1735,6 +1909,8 @@ mod tests {
                     let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
                     let (c, d) = prog.lane(&v, &lane_grad(&b, lane));
                     cut += d.is_nan() as usize;
+                    let patch = v[5] as usize;
+                    seams += (reach(&prepared.packed, patch, v[3], v[4], &lane_grad(&b, lane)) == Reach::Seam) as usize;
                     quartic += (v[5] == 2.0) as usize;
                     assert_eq!(rgba[lane], c, "mode {mode} block {k} lane {lane}");
                     assert_eq!(depth[lane].to_bits(), d.to_bits(), "mode {mode} block {k} lane {lane}");
@@ -1745,6 +1921,7 @@ mod tests {
         assert!(mixed > 160, "only {mixed} blocks over two patches");
         assert!(cut > 100 && quartic > 500, "{cut} lanes cut away, {quartic} on the quartic patch");
         assert!(many_spans >= 9, "only {many_spans} blocks over more than four span pairs");
+        assert!(windowed >= 30 && seams >= 30, "only {windowed} window runs, {seams} seam lanes");
     }
 
     #[test]
