@@ -113,7 +113,7 @@ impl NurbsProgram<'_> {
                 }
             }
         }
-        // the arithmetic, one register of lanes at a time, once per group
+        // the arithmetic, one register of lanes at a time, once per run
         let light = Vec3::new(f.light[0], f.light[1], f.light[2]);
         let cam = Vec3::new(f.camera[0], f.camera[1], f.camera[2]);
         let mut o = BicubicOut::default();
@@ -279,18 +279,19 @@ struct BicubicOut {
     finite: Lanes,
 }
 
-/// The bicubic point, normal, depth and Blinn–Phong terms of 16 lanes that
-/// share their knot spans, one register of lanes at a time: the steps of
-/// [`eval_packed`] (`basis_ders_fixed::<f32, 3, 4>`, `sums`, the quotient
-/// rule), [`exact_normal`] and [`NurbsProgram::lane`] in the same order, with
-/// the knots and control points broadcast.
+/// The bicubic point, normal, depth and Blinn–Phong terms of the lanes of
+/// one run (one span pair, or a [`Window`] of spans on one patch), one
+/// register of lanes at a time: the steps of [`eval_packed`]
+/// (`basis_ders_fixed::<f32, 3, 4>`, `sums`, the quotient rule),
+/// [`exact_normal`] and [`NurbsProgram::lane`] in the same order, with the
+/// knots and control points broadcast.
 struct BicubicOp<'a> {
     /// The knot spans (of the window's first column and row).
     su: usize,
     sv: usize,
     window: Window<'a>,
-    /// The group's lanes: registers holding none of them are skipped (their
-    /// lanes are another group's, or read by nobody).
+    /// The run's lanes: registers holding none of them are skipped (their
+    /// lanes are another run's, or read by nobody).
     lanes: u16,
     /// Lanes that may be seam fragments: the registers holding one also
     /// give the seam depth.

@@ -996,10 +996,25 @@ mod tests {
     /// The block path and the per-lane path give the same bits: colour and
     /// depth of every lane, in the three modes the block path takes, with
     /// the lanes of a block on one patch, on two bicubic patches of
-    /// different domains (one trimmed), or on a bicubic and a quartic one.
+    /// different domains (one trimmed), or on a bicubic and a quartic one;
+    /// on one span pair, in window runs, in runs per pair and alone in their
+    /// run; inside, at seams and on boundary fans.
     #[test]
     fn block_bicubic_equals_the_per_lane_program_bit_for_bit() {
-        let s = bicubic_6x5();
+        // the first patch: nine knot spans across, so that lanes near one
+        // point take windows and scattered lanes spread past a window's reach
+        let net0: Vec<[f64; 4]> = (0..5)
+            .flat_map(|j| {
+                (0..12).map(move |i| {
+                    let (x, y) = (i as f64 * 0.5, j as f64);
+                    [x, y, (x * 0.9).sin() * (y * 0.7).cos(), 1.0 + 0.3 * ((i + j) % 3) as f64]
+                })
+            })
+            .collect();
+        let mut ku0 = vec![0.0; 4];
+        ku0.extend((1..9).map(|i| i as f64 / 9.0));
+        ku0.extend([1.0; 4]);
+        let s = NurbsSurface::new(3, 3, 12, 5, ku0, bicubic_6x5().knots_v.clone(), net0).unwrap();
         // a second patch: the first moved and bent, over a smaller domain
         let mut net = net_6x5();
         for (i, p) in net.iter_mut().enumerate() {
@@ -1034,7 +1049,7 @@ mod tests {
         )
         .unwrap();
         let (mut checked, mut many_spans, mut mixed, mut cut, mut quartic) = (0, 0, 0, 0, 0);
-        let (mut windowed, mut seams) = (0, 0);
+        let (mut windowed, mut split, mut seams, mut fans) = (0, 0, 0, 0);
         for mode in [SHADED, ISOPHOTE, NORMAL] {
             let mut frame = prepared.frame(&cam, 64, 48);
             frame.params[0] = mode;
@@ -1073,6 +1088,10 @@ mod tests {
                     if k % 3 != 0 && (lane / 4 + k / 3) % 2 == 1 {
                         b.v[5][lane] = (k % 3) as f32;
                     }
+                    // one block in seven: some lanes on a boundary fan of their patch
+                    if k % 7 == 0 && lane % 5 == 1 {
+                        b.v[5][lane] += crate::nurbs::FAN_MARK;
+                    }
                 }
                 if k % 3 != 0 {
                     mixed += 1;
@@ -1086,7 +1105,7 @@ mod tests {
                     let kv = &t.knots_v[1..1 + t.knots_v[0] as usize];
                     let mut on0 = 0u16;
                     for lane in 0..LANES {
-                        on0 |= ((b.v[5][lane] == 0.0) as u16) << lane;
+                        on0 |= ((b.v[5][lane].round() == 0.0) as u16) << lane;
                     }
                     let clamp = |x: &Lanes| simd::map(x, |x| x.clamp(0.0, 1.0));
                     let (u, v) = (clamp(&b.v[3]), clamp(&b.v[4]));
@@ -1094,7 +1113,10 @@ mod tests {
                         many_spans += 1;
                     }
                     if let Some(g) = span_groups(ku, kv, nu, nv, &u, &v, b.live & on0) {
-                        windowed += window(&g, b.live & on0).is_some() as usize;
+                        let w = window(&g, b.live & on0).is_some();
+                        windowed += w as usize;
+                        // runs per span pair, more than four in the block: lanes alone in theirs
+                        split += (!w && g.len > 4) as usize;
                     }
                 }
                 let mut rgba = [[0u8; 4]; LANES];
@@ -1110,8 +1132,16 @@ mod tests {
                     let v: [f32; VARYINGS] = std::array::from_fn(|j| b.v[j][lane]);
                     let (c, d) = prog.lane(&v, &lane_grad(&b, lane));
                     cut += d.is_nan() as usize;
-                    let patch = v[5] as usize;
-                    seams += (reach(&prepared.packed, patch, v[3], v[4], &lane_grad(&b, lane)) == Reach::Seam) as usize;
+                    // seam lanes the kernel shades (bicubic patch, a normal that is not degenerate)
+                    let patch = v[5].round() as usize;
+                    let mut at = reach(&prepared.packed, patch, v[3], v[4], &lane_grad(&b, lane));
+                    if at == Reach::Inside && is_fan(v[5]) {
+                        at = Reach::Seam;
+                        fans += 1;
+                    }
+                    let e = eval_packed(&prepared.packed, patch, v[3], v[4], false, true);
+                    let sound = e.su.cross(e.sv).length() > 1e-6 * (e.su.length() + e.sv.length()).powi(2);
+                    seams += (at == Reach::Seam && patch != 2 && sound) as usize;
                     quartic += (v[5] == 2.0) as usize;
                     assert_eq!(rgba[lane], c, "mode {mode} block {k} lane {lane}");
                     assert_eq!(depth[lane].to_bits(), d.to_bits(), "mode {mode} block {k} lane {lane}");
@@ -1123,6 +1153,7 @@ mod tests {
         assert!(cut > 100 && quartic > 500, "{cut} lanes cut away, {quartic} on the quartic patch");
         assert!(many_spans >= 9, "only {many_spans} blocks over more than four span pairs");
         assert!(windowed >= 30 && seams >= 30, "only {windowed} window runs, {seams} seam lanes");
+        assert!(split >= 9 && fans >= 30, "only {split} blocks of runs per span pair, {fans} fan lanes");
     }
 
     #[test]
