@@ -39,7 +39,7 @@ impl CpuRenderer {
         check_size(width, height)?;
         let frame = scene.frame_uniform(camera, width, height);
         let program = textured::TexturedProgram::new(scene, &frame);
-        let mut target = raster::Target::new(width, height, crate::prepare::background_rgba8(&frame));
+        let mut target = raster::Target::deferred(width, height, crate::prepare::background_rgba8(&frame));
         let varyings: Vec<[f32; textured::VARYINGS]> = scene.vertices.iter().map(textured::varyings).collect();
         let positions: Vec<glam::Vec3> = scene.vertices.iter().map(|v| glam::Vec3::from_array(v.position)).collect();
         let view_proj = glam::Mat4::from_cols_array_2d(&frame.view_proj);
@@ -86,42 +86,69 @@ impl CpuRenderer {
         });
         let sorted;
         let indices = if early.is_some() {
-            // one 64-bit key per triangle: the squared distance of its centroid
-            // (non-negative, so its bits order as the value does) above its
-            // index (ties in submission order), sorted in parallel
+            // the squared distance of each triangle's centroid (non-negative,
+            // so its bits order as the value does; NaN, a degenerate vertex,
+            // last), computed in parallel
             let eye = camera.position;
-            let mut keys: Vec<u64> = scene
+            let keys: Vec<u32> = scene
                 .indices
                 .par_chunks_exact(3)
-                .enumerate()
-                .map(|(k, t)| {
+                .map(|t| {
                     let c = t.iter().map(|&i| positions[i as usize]).fold(glam::Vec3::ZERO, |a, p| a + p) / 3.0;
                     let d = (c - eye).length_squared();
-                    // NaN (a degenerate vertex) last
-                    let bits = if d.is_nan() { u32::MAX } else { d.to_bits() };
-                    (bits as u64) << 32 | k as u64
+                    if d.is_nan() { u32::MAX } else { d.to_bits() }
                 })
                 .collect();
-            // a frame's few thousand keys sort faster on one thread than
-            // split between threads
-            if keys.len() < 1 << 16 {
-                keys.sort_unstable();
-            } else {
-                keys.par_sort_unstable();
-            }
-            sorted = keys
-                .par_iter()
-                .flat_map_iter(|&key| {
-                    let k = (key & 0xffff_ffff) as usize;
-                    scene.indices[3 * k..3 * k + 3].iter().copied()
-                })
-                .collect::<Vec<u32>>();
+            let order = order_by_key(&keys);
+            let mut out = vec![0u32; 3 * order.len()];
+            out.par_chunks_mut(3).zip(order.par_iter()).for_each(|(o, &k)| {
+                o.copy_from_slice(&scene.indices[3 * k as usize..3 * k as usize + 3]);
+            });
+            sorted = out;
             &sorted
         } else {
             &scene.indices
         };
         raster::rasterize_early(target, view_proj, &positions, &varyings, indices, &draws, program, early);
     }
+}
+
+/// The places `0..keys.len()` ordered by their keys, ties in place order:
+/// a least-significant-digit radix sort (three stable passes of 11 bits,
+/// a pass skipped when every key shares its digit), linear in the count
+/// where a comparison sort of a frame's tens of thousands of triangles took
+/// a serial part of the frame.
+fn order_by_key(keys: &[u32]) -> Vec<u32> {
+    const BITS: u32 = 11;
+    const DIGITS: usize = 1 << BITS;
+    let digit = |k: u32, pass: u32| (k >> (BITS * pass)) as usize & (DIGITS - 1);
+    // the three passes' histograms in one read of the keys
+    let mut counts = vec![[0u32; DIGITS]; 3];
+    for &k in keys {
+        for (pass, c) in counts.iter_mut().enumerate() {
+            c[digit(k, pass as u32)] += 1;
+        }
+    }
+    let mut order: Vec<u32> = (0..keys.len() as u32).collect();
+    let mut next = vec![0u32; keys.len()];
+    for (pass, count) in counts.iter().enumerate() {
+        if count.iter().any(|&n| n as usize == keys.len()) {
+            continue;
+        }
+        let mut start = [0u32; DIGITS];
+        let mut sum = 0;
+        for (s, &n) in start.iter_mut().zip(count) {
+            *s = sum;
+            sum += n;
+        }
+        for &i in &order {
+            let d = digit(keys[i as usize], pass as u32);
+            next[start[d] as usize] = i;
+            start[d] += 1;
+        }
+        std::mem::swap(&mut order, &mut next);
+    }
+    order
 }
 
 impl CpuRenderer {
@@ -142,7 +169,7 @@ impl CpuRenderer {
             hitex_core::texture::linear_to_srgb_u8(bg.z),
             255,
         ];
-        let mut target = raster::Target::new(width, height, clear);
+        let mut target = raster::Target::deferred(width, height, clear);
         Self::raster_nurbs(&mut target, scene, camera, width, height);
         Ok(Frame { width, height, rgba: target.into_rgba() })
     }
@@ -163,7 +190,7 @@ impl CpuRenderer {
         let frame = scene.frame(camera, light, width, height);
         let e = hitex_core::texture::linear_to_srgb_u8;
         let bg = scene.background;
-        let mut target = raster::Target::new(width, height, [e(bg.x), e(bg.y), e(bg.z), 255]);
+        let mut target = raster::Target::deferred(width, height, [e(bg.x), e(bg.y), e(bg.z), 255]);
         let program = btf::BtfProgram::new(scene, &frame);
         let varyings: Vec<[f32; btf::VARYINGS]> = scene.vertices.iter().map(btf::varyings).collect();
         let positions: Vec<glam::Vec3> = scene.vertices.iter().map(|v| glam::Vec3::from_array(v.position)).collect();
@@ -180,6 +207,34 @@ mod tests {
     use crate::nurbs::{NurbsMode, PreparedNurbs};
     use raster::{Block, BlockShader};
     use simd::{LANES, Lanes};
+
+    /// The radix order is that of sorting (key, place) pairs: keys with
+    /// many ties, keys whose upper digits all agree (passes skipped), NaN's
+    /// key, none and one.
+    #[test]
+    fn radix_order_is_the_sorted_order_ties_in_place_order() {
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        let sets: Vec<Vec<u32>> = vec![
+            vec![],
+            vec![5],
+            (0..5000).map(|_| next() as u32 % 97).collect(),
+            (0..5000).map(|_| 0x4000_0000 | (next() as u32 & 0x3ff)).collect(),
+            (0..5000).map(|_| (1.0 + (next() % 1000) as f32 * 0.25).to_bits()).chain([u32::MAX, 0]).collect(),
+            (0..20000).map(|_| next() as u32).collect(),
+        ];
+        for keys in sets {
+            let mut expected: Vec<(u32, u32)> = keys.iter().enumerate().map(|(i, &k)| (k, i as u32)).collect();
+            expected.sort_unstable();
+            let expected: Vec<u32> = expected.into_iter().map(|(_, i)| i).collect();
+            assert_eq!(order_by_key(&keys), expected, "{} keys", keys.len());
+        }
+    }
 
     /// The NURBS program handed its lanes in quads, as the rasterizer hands
     /// them to a program that does not pack lanes (and the derivatives taken

@@ -8,7 +8,10 @@
 //!   implementations commonly use), integer edge functions, top-left fill rule,
 //!   both windings drawn;
 //! * setup runs in parallel chunks of triangles (kept in submission order);
-//!   triangles wholly inside the clip volume skip the clipper;
+//!   triangles wholly inside the clip volume skip the clipper; each chunk
+//!   bins its triangles into bands (a counting sort), which the band tasks
+//!   join in chunk order;
+//! * a [`Target::deferred`] clear is made by each band's task, on its rows;
 //! * traversal: the screen is cut into horizontal bands of [`BAND`] rows that
 //!   rayon renders in parallel; each band walks its triangles in submission
 //!   order over 8×2 blocks of 2×2 quads aligned to even pixel coordinates;
@@ -213,16 +216,39 @@ pub struct Target {
     pub color: Vec<[u8; 4]>,
     /// Depth per pixel (1 = far).
     pub depth: Vec<f32>,
+    /// A clear still to be made (see [`Target::deferred`]).
+    pending: Option<[u8; 4]>,
 }
 
 impl Target {
     /// Buffers cleared to `clear` and depth 1.
     pub fn new(width: u32, height: u32, clear: [u8; 4]) -> Self {
         let n = width as usize * height as usize;
-        Self { width, height, color: vec![clear; n], depth: vec![1.0; n] }
+        Self { width, height, color: vec![clear; n], depth: vec![1.0; n], pending: None }
     }
+
+    /// Buffers that the next [`rasterize`] clears to `clear` and depth 1,
+    /// band by band in its workers, instead of in one pass before it (a
+    /// frame's only serial pass over every pixel). Until then `color` and
+    /// `depth` hold zeros; [`Target::into_rgba`] clears them if no
+    /// rasterization did.
+    pub fn deferred(width: u32, height: u32, clear: [u8; 4]) -> Self {
+        let n = width as usize * height as usize;
+        // zeroed allocations: fresh pages need no writing here
+        Self { width, height, color: vec![[0; 4]; n], depth: vec![0.0; n], pending: Some(clear) }
+    }
+
+    /// Makes a deferred clear now.
+    pub fn finish_clear(&mut self) {
+        if let Some(c) = self.pending.take() {
+            self.color.fill(c);
+            self.depth.fill(1.0);
+        }
+    }
+
     /// The colour buffer as bytes (the same allocation, not a copy).
-    pub fn into_rgba(self) -> Vec<u8> {
+    pub fn into_rgba(mut self) -> Vec<u8> {
+        self.finish_clear();
         bytemuck::allocation::cast_vec(self.color)
     }
 }
@@ -375,24 +401,29 @@ pub fn rasterize_early<const K: usize, S: BlockShader<K>>(
         })
         .collect();
 
-    // clipping and setup, in submission order (chunks in parallel, kept in order)
-    let flat: Vec<(usize, [u32; 3])> = draws
+    // clipping, setup and binning, in submission order: chunks of a draw's
+    // triangles in parallel, each set-up triangle named by its chunk and
+    // its place there (flattening the chunks into one vector would copy
+    // every set-up triangle once more per frame)
+    let chunks: Vec<(usize, usize, usize)> = draws
         .iter()
         .flat_map(|d| {
-            let range = d.first_index as usize..(d.first_index + d.index_count) as usize;
-            indices[range].chunks_exact(3).map(move |t| (d.material, [t[0], t[1], t[2]]))
+            // index ranges of whole triangles
+            let (first, count) = (d.first_index as usize, d.index_count as usize / 3);
+            (0..count.div_ceil(SETUP_CHUNK)).map(move |c| {
+                let (t0, t1) = (c * SETUP_CHUNK, (c * SETUP_CHUNK + SETUP_CHUNK).min(count));
+                (d.material, first + 3 * t0, first + 3 * t1)
+            })
         })
         .collect();
-    // kept as the chunks' own vectors (a triangle is named by its chunk and
-    // its place there): flattening them into one vector would copy every
-    // set-up triangle once more per frame
-    let tris: Vec<Vec<Setup<K>>> = flat
-        .par_chunks(SETUP_CHUNK)
-        .map(|chunk| {
-            let mut out = Vec::with_capacity(chunk.len());
+    let bands = height.div_ceil(BAND) as usize;
+    let tris: Vec<SetupChunk<K>> = chunks
+        .par_iter()
+        .map(|&(material, i0, i1)| {
+            let mut out = Vec::with_capacity((i1 - i0) / 3);
             let mut poly = Vec::with_capacity(12);
             let mut scratch = Vec::with_capacity(12);
-            for &(material, t) in chunk {
+            for t in indices[i0..i1].chunks_exact(3) {
                 let idx = [t[0] as usize, t[1] as usize, t[2] as usize];
                 let pv = idx.map(|i| &post[i]);
                 // wholly inside every clip plane: no polygon to cut, and the
@@ -423,35 +454,75 @@ pub fn rasterize_early<const K: usize, S: BlockShader<K>>(
                     out.extend(setup(fan, idx, varyings, material, key, width, height));
                 }
             }
-            out
+            SetupChunk::binned(out, bands)
         })
         .collect();
 
-    // binning into bands
-    let bands = height.div_ceil(BAND) as usize;
-    let mut bins: Vec<Vec<(u32, u32)>> = vec![Vec::new(); bands];
-    for (c, chunk) in tris.iter().enumerate() {
-        for (i, t) in chunk.iter().enumerate() {
-            let (b0, b1) = ((t.by0 / BAND) as usize, ((t.by1 - 1) / BAND) as usize);
-            for bin in &mut bins[b0..=b1] {
-                bin.push((c as u32, i as u32));
-            }
-        }
-    }
-
-    // traversal, one band per task
+    // traversal, one band per task (which also makes a deferred clear of its rows)
+    let pending = target.pending.take();
     let w = width as usize;
     let band_px = w * BAND as usize;
     target.color.par_chunks_mut(band_px).zip(target.depth.par_chunks_mut(band_px)).enumerate().for_each(
         |(b, (color, depth))| {
+            if let Some(c) = pending {
+                color.fill(c);
+                depth.fill(1.0);
+            }
             let y_band = b as u32 * BAND;
             let rows = (color.len() / w) as u32;
+            // the band's triangles, in submission order
+            let mut bin = Vec::with_capacity(tris.iter().map(|c| c.in_band(b).len()).sum());
+            for (c, chunk) in tris.iter().enumerate() {
+                bin.extend(chunk.in_band(b).iter().map(|&i| (c as u32, i)));
+            }
             simd::run_at(
                 if S::GATHER_BOUND { simd::level_for_gathers() } else { simd::level() },
-                BandOp { tris: &tris, bin: &bins[b], shader, color, depth, width, y_band, rows, occ },
+                BandOp { tris: &tris, bin: &bin, shader, color, depth, width, y_band, rows, occ },
             );
         },
     );
+}
+
+/// The set-up triangles of one chunk of the setup stage, and which of them
+/// each band of rows meets (lists in the chunk's order, back to back).
+struct SetupChunk<const K: usize> {
+    tris: Vec<Setup<K>>,
+    /// Band `b`'s list is `items[start[b]..start[b + 1]]`.
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl<const K: usize> SetupChunk<K> {
+    /// Bins `tris` into `bands` bands of [`BAND`] rows (a counting sort).
+    fn binned(tris: Vec<Setup<K>>, bands: usize) -> Self {
+        let range = |t: &Setup<K>| ((t.by0 / BAND) as usize, ((t.by1 - 1) / BAND) as usize);
+        let mut start = vec![0u32; bands + 1];
+        for t in &tris {
+            let (b0, b1) = range(t);
+            for n in &mut start[b0 + 1..=b1 + 1] {
+                *n += 1;
+            }
+        }
+        for b in 0..bands {
+            start[b + 1] += start[b];
+        }
+        let mut next = start.clone();
+        let mut items = vec![0u32; start[bands] as usize];
+        for (i, t) in tris.iter().enumerate() {
+            let (b0, b1) = range(t);
+            for n in &mut next[b0..=b1] {
+                items[*n as usize] = i as u32;
+                *n += 1;
+            }
+        }
+        Self { tris, start, items }
+    }
+
+    /// The chunk's triangles that band `b` meets.
+    #[inline]
+    fn in_band(&self, b: usize) -> &[u32] {
+        &self.items[self.start[b] as usize..self.start[b + 1] as usize]
+    }
 }
 
 /// The conservative early test's constants (see [`EarlyDepth`]).
@@ -643,7 +714,7 @@ const fn lane_dy(lane: usize) -> i64 {
 /// The traversal of one band (its triangles in submission order), compiled
 /// per SIMD level.
 struct BandOp<'a, const K: usize, S> {
-    tris: &'a [Vec<Setup<K>>],
+    tris: &'a [SetupChunk<K>],
     bin: &'a [(u32, u32)],
     shader: &'a S,
     color: &'a mut [[u8; 4]],
@@ -672,9 +743,9 @@ impl<const K: usize, S: BlockShader<K>> pulp::WithSimd for BandOp<'_, K, S> {
             // the set-up of a triangle a few ahead, on its way into the cache
             // (set-ups come from the other workers' chunks)
             if let Some(&(nc, ni)) = self.bin.get(k + PREFETCH_AHEAD) {
-                prefetch(&self.tris[nc as usize][ni as usize]);
+                prefetch(&self.tris[nc as usize].tris[ni as usize]);
             }
-            let t = &self.tris[c as usize][i as usize];
+            let t = &self.tris[c as usize].tris[i as usize];
             raster_band(simd, t, &mut batch, &mut out, self.width, self.y_band, self.rows, self.occ);
             if !pack {
                 batch.flush(&mut out);
@@ -1396,6 +1467,57 @@ mod tests {
             }
         }
         (pos, vary, idx)
+    }
+
+    /// Triangles in several setup chunks and draws (a draw longer than a
+    /// chunk and not a whole number of chunks, an empty one, one starting at
+    /// an index that is not a multiple of 3, one with two indices past its
+    /// last triangle), set up and binned chunk by chunk, draw the image of
+    /// drawing them one by one: all at one depth, so that where they overlap
+    /// the first drawn is seen. A deferred clear gives the image of a clear
+    /// made first, also where nothing is drawn.
+    fn chunks_keep_submission_order<const DEPTH: bool>() {
+        let (mut pos, mut vary, tri_idx) = confetti(SETUP_CHUNK + 500);
+        for (p, a) in pos.iter_mut().zip(&mut vary) {
+            p.z = 0.5;
+            a[1] = 0.0;
+        }
+        // one index in front, so that the draws after the first start at 3k + 1
+        let idx: Vec<u32> = std::iter::once(0).chain(tri_idx.iter().copied()).collect();
+        let (w, h) = (61, 47);
+        let p = Ids::<DEPTH, true, false> { blocks: 0.into(), quads: 0.into(), lanes: 0.into(), mixed: false.into() };
+        let d = |first: u32, count: u32| Draw { first_index: first, index_count: count, material: 0 };
+        let long = SETUP_CHUNK as u32 + 200;
+        let n = tri_idx.len() as u32 / 3;
+        let draws = [
+            d(1, 3 * long),
+            d(1 + 3 * long, 0),
+            d(1 + 3 * long, 3 * 50 + 2),
+            d(1 + 3 * (long + 50), 3 * (n - long - 50)),
+        ];
+        let clear = [9, 8, 7, 6];
+        let mut all = Target::deferred(w, h, clear);
+        rasterize(&mut all, Mat4::IDENTITY, &pos, &vary, &idx, &draws, &p);
+        let mut one = Target::new(w, h, clear);
+        for t in 0..n {
+            rasterize(&mut one, Mat4::IDENTITY, &pos, &vary, &idx, &[d(1 + 3 * t, 3)], &p);
+        }
+        assert!(all.color == one.color && all.depth == one.depth, "depth program: {DEPTH}");
+        let cleared = all.color.iter().filter(|&&c| c == clear).count();
+        assert!(cleared > 0 && cleared < all.color.len() / 2, "{cleared} pixels of the clear colour");
+        // the order matters: drawn last first, the image differs
+        let mut reversed = Target::new(w, h, clear);
+        for t in (0..n).rev() {
+            rasterize(&mut reversed, Mat4::IDENTITY, &pos, &vary, &idx, &[d(1 + 3 * t, 3)], &p);
+        }
+        assert!(reversed.color != one.color);
+        assert_eq!(Target::deferred(3, 2, clear).into_rgba(), clear.repeat(6));
+    }
+
+    #[test]
+    fn chunks_keep_submission_order_with_and_without_program_depth() {
+        chunks_keep_submission_order::<false>();
+        chunks_keep_submission_order::<true>();
     }
 
     fn batching_matches_drawing_one_by_one<const DEPTH: bool, const PACK: bool, const LP: bool>() {

@@ -1189,7 +1189,7 @@ fn render_mesh(prog: &Program<'_>, mesh: &FlyMesh, sampler: FlySampler, stats: b
     let scheme = if sampler.banks() == 3 { SpanScheme::Banks3x3 } else { SpanScheme::Banks4x4 };
     let threads = if stats { rayon::current_num_threads().max(1) } else { 0 };
     let shader = MeshProgram { prog, banks: (0..threads).map(|_| Mutex::new(BankModel::new(scheme))).collect() };
-    let mut target = Target::new(w, h, [0, 0, 0, 255]);
+    let mut target = Target::deferred(w, h, [0, 0, 0, 255]);
     let vp = Mat4::from_cols_array_2d(&u.view_proj);
     rasterize(&mut target, vp, &positions, &varyings, &mesh.indices, &draws, &shader);
     // the sky where nothing was drawn
