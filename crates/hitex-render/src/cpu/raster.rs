@@ -405,25 +405,17 @@ pub fn rasterize_early<const K: usize, S: BlockShader<K>>(
     // triangles in parallel, each set-up triangle named by its chunk and
     // its place there (flattening the chunks into one vector would copy
     // every set-up triangle once more per frame)
-    let chunks: Vec<(usize, usize, usize)> = draws
-        .iter()
-        .flat_map(|d| {
-            // index ranges of whole triangles
-            let (first, count) = (d.first_index as usize, d.index_count as usize / 3);
-            (0..count.div_ceil(SETUP_CHUNK)).map(move |c| {
-                let (t0, t1) = (c * SETUP_CHUNK, (c * SETUP_CHUNK + SETUP_CHUNK).min(count));
-                (d.material, first + 3 * t0, first + 3 * t1)
-            })
-        })
-        .collect();
+    let chunks = setup_chunks(draws);
     let bands = height.div_ceil(BAND) as usize;
     let tris: Vec<SetupChunk<K>> = chunks
         .par_iter()
-        .map(|&(material, i0, i1)| {
-            let mut out = Vec::with_capacity((i1 - i0) / 3);
+        .map(|pieces| {
+            let mut out = Vec::with_capacity(pieces.iter().map(|p| (p.2 - p.1) / 3).sum());
             let mut poly = Vec::with_capacity(12);
             let mut scratch = Vec::with_capacity(12);
-            for t in indices[i0..i1].chunks_exact(3) {
+            for (material, t) in
+                pieces.iter().flat_map(|&(m, i0, i1)| indices[i0..i1].chunks_exact(3).map(move |t| (m, t)))
+            {
                 let idx = [t[0] as usize, t[1] as usize, t[2] as usize];
                 let pv = idx.map(|i| &post[i]);
                 // wholly inside every clip plane: no polygon to cut, and the
@@ -481,6 +473,32 @@ pub fn rasterize_early<const K: usize, S: BlockShader<K>>(
             );
         },
     );
+}
+
+/// The setup stage's chunks of about [`SETUP_CHUNK`] triangles each, in
+/// submission order: each a list of `(material, first index, end index)`
+/// pieces of whole triangles, so that a draw longer than a chunk spans
+/// several and many short draws share one.
+fn setup_chunks(draws: &[Draw]) -> Vec<Vec<(usize, usize, usize)>> {
+    let mut chunks = Vec::new();
+    let mut current = Vec::new();
+    let mut filled = 0;
+    for d in draws {
+        let (mut first, mut left) = (d.first_index as usize, d.index_count as usize / 3);
+        while left > 0 {
+            let take = left.min(SETUP_CHUNK - filled);
+            current.push((d.material, first, first + 3 * take));
+            (first, left, filled) = (first + 3 * take, left - take, filled + take);
+            if filled == SETUP_CHUNK {
+                chunks.push(std::mem::take(&mut current));
+                filled = 0;
+            }
+        }
+    }
+    if !current.is_empty() {
+        chunks.push(current);
+    }
+    chunks
 }
 
 /// The set-up triangles of one chunk of the setup stage, and which of them
@@ -1512,6 +1530,33 @@ mod tests {
         }
         assert!(reversed.color != one.color);
         assert_eq!(Target::deferred(3, 2, clear).into_rgba(), clear.repeat(6));
+    }
+
+    /// Set-up chunks hold every whole triangle once, in order, at most
+    /// [`SETUP_CHUNK`] a chunk and all but the last full: many short draws
+    /// share a chunk, a long one spans several.
+    #[test]
+    fn setup_chunks_pack_short_draws_and_split_long_ones() {
+        let d = |m: usize, first: u32, tris: u32, extra: u32| Draw {
+            first_index: first,
+            index_count: 3 * tris + extra,
+            material: m,
+        };
+        let mut draws: Vec<Draw> = (0..300).map(|k| d(k % 3, 7 + 6 * k as u32, 2, k as u32 % 3)).collect();
+        draws.push(d(5, 1, 3 * SETUP_CHUNK as u32 + 10, 2));
+        draws.push(d(6, 4, 0, 1));
+        let chunks = setup_chunks(&draws);
+        let got: Vec<(usize, usize)> =
+            chunks.iter().flatten().flat_map(|&(m, i0, i1)| (i0..i1).step_by(3).map(move |i| (m, i))).collect();
+        let want: Vec<(usize, usize)> = draws
+            .iter()
+            .flat_map(|d| (0..d.index_count as usize / 3).map(move |t| (d.material, d.first_index as usize + 3 * t)))
+            .collect();
+        assert_eq!(got, want);
+        let sizes: Vec<usize> = chunks.iter().map(|c| c.iter().map(|p| (p.2 - p.1) / 3).sum()).collect();
+        assert_eq!(sizes.len(), want.len().div_ceil(SETUP_CHUNK));
+        assert!(sizes[..sizes.len() - 1].iter().all(|&n| n == SETUP_CHUNK), "{sizes:?}");
+        assert!(chunks[0].len() > 200 && chunks.iter().all(|c| c.iter().all(|p| p.2 > p.1)));
     }
 
     #[test]
