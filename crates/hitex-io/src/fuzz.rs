@@ -125,7 +125,17 @@ pub fn run(target: Target, data: &[u8]) -> bool {
         Target::Hbtf => crate::btf_file::hbtf_from_bytes(data, "fuzz.hbtf").is_ok(),
         Target::BtfNames => btf_names(data),
         Target::Geotiff => {
-            match crate::geotiff::parse_geotiff(std::io::Cursor::new(data), data.len() as u64, Path::new("fuzz.tif")) {
+            let path = Path::new("fuzz.tif");
+            // the overviews of a COG, each read as its own level (at most 4)
+            let mut levels_read = false;
+            if let Ok(levels) = crate::geotiff::read_levels(std::io::Cursor::new(data), path) {
+                for l in 1..levels.levels.len().min(5) {
+                    let got =
+                        crate::geotiff::parse_geotiff_level(std::io::Cursor::new(data), data.len() as u64, path, l);
+                    levels_read |= got.is_ok();
+                }
+            }
+            match crate::geotiff::parse_geotiff(std::io::Cursor::new(data), data.len() as u64, path) {
                 Ok(mut r) => {
                     crate::geotiff::fill_holes(&mut r);
                     // its CRS, and a small reprojection into a local frame
@@ -142,7 +152,7 @@ pub fn run(target: Target, data: &[u8]) -> bool {
                     }
                     true
                 }
-                Err(_) => false,
+                Err(_) => levels_read,
             }
         }
         Target::Hgt => {

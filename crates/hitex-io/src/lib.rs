@@ -10,7 +10,8 @@
 //! * BTFs: the native `.hbtf` ([`btf_file`]) and measured image sets, PNG and
 //!   OpenEXR ([`btf_images`]);
 //! * terrain: elevation models ([`dem`], several tiles as one: [`mosaic`]),
-//!   GeoTIFF rasters and their georeferencing ([`geotiff`]), coordinate
+//!   GeoTIFF rasters and their georeferencing, whole, by windows or by COG
+//!   overview ([`geotiff`]), coordinate
 //!   systems ([`crs`]) and reprojection ([`reproject`]), tile stores: TMS
 //!   folders ([`gst`]) and MBTiles ([`mbtiles`]);
 //! * [`limits`]: the memory cap every reader checks a file's claimed sizes
