@@ -140,6 +140,59 @@ pub struct RenderArgs {
     /// is the older name; `active-area --levels` counts levels).
     #[arg(long = "show-levels", visible_alias = "levels")]
     pub levels: bool,
+    /// Read the full-resolution DEM and imagery even where a GeoTIFF holds
+    /// overviews (a Cloud-Optimized GeoTIFF's coarser levels): by default a
+    /// DEM is read at the coarsest level that still has as many posts as
+    /// the view can show, and imagery at the coarsest with at least 16
+    /// texels per pixel of the view.
+    #[arg(long)]
+    pub full_resolution: bool,
+}
+
+/// The level of a GeoTIFF that a view needs: the coarsest overview at most
+/// `k` times coarser than the full image (`k` from the full image's size
+/// against `cap` pixels: `ceil` rounds it up, as decimating by whole blocks
+/// does), with a line saying what was read; None when the full image is
+/// needed (or is within the cap, or the file has no overviews, or the
+/// overview cannot be read: said in a warning).
+fn overview_for(path: &Path, what: &str, cap: u64, ceil: bool) -> Result<Option<GeoRaster>, CliError> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
+    if ext != "tif" && ext != "tiff" {
+        return Ok(None);
+    }
+    let levels = hitex_io::geotiff::geotiff_levels(path)?;
+    for n in &levels.notes {
+        eprintln!("hitex: warning: {}: {n}", path.display());
+    }
+    let full = levels.levels[0];
+    let pixels = full.width as u64 * full.height as u64;
+    if pixels <= cap || levels.levels.len() < 2 {
+        return Ok(None);
+    }
+    let k = (pixels as f64 / cap as f64).sqrt();
+    let l = levels.coarsest_within(if ceil { k.ceil().max(2.0) } else { k });
+    if l == 0 {
+        return Ok(None);
+    }
+    let r = match hitex_io::geotiff::load_geotiff_level(path, l) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("hitex: warning: overview {l} of {e}; the full image is read instead");
+            return Ok(None);
+        }
+    };
+    say!(
+        "{}: read overview {l} of {} ({}x{} {what}, {:.0}x coarser) of the full {}x{}: enough for the view \
+         (--full-resolution reads the full image)",
+        path.display(),
+        levels.levels.len() - 1,
+        r.width,
+        r.height,
+        levels.factor(l),
+        full.width,
+        full.height
+    );
+    Ok(Some(r))
 }
 
 /// Band values stretched from their 2nd to 98th percentile into an sRGB image.
@@ -364,7 +417,17 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
     }
     crate::image_out(&a.output)?;
     let bands = parse_band_list(&a.bands)?;
-    let DemInput { raster: dem, name: dem_name, .. } = load_dem_input(&a.dem)?;
+    // no more posts than the picture can show: a 1″ tile is 13 M posts for a 0.8 M-pixel view
+    let pixels = a.size.0 as u64 * a.size.1 as u64;
+    let post_cap = (4 * pixels).max(1 << 20);
+    let coarse_dem = match a.dem.as_slice() {
+        [only] if !a.full_resolution && only.is_file() => overview_for(only, "posts", post_cap, true)?,
+        _ => None,
+    };
+    let DemInput { raster: dem, name: dem_name, .. } = match coarse_dem {
+        Some(r) => DemInput { raster: checked_dem(r, &a.dem[0])?, name: a.dem[0].clone(), file: None },
+        None => load_dem_input(&a.dem)?,
+    };
     let crs = a
         .crs
         .as_deref()
@@ -377,7 +440,11 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
             (Some((world_imagery(path, &dem, &dem_name)?.0, path.as_path())), true)
         }
         Some(path) => {
-            let img = load_geotiff(path)?;
+            let coarse = if a.full_resolution { None } else { overview_for(path, "texels", 16 * pixels, false)? };
+            let img = match coarse {
+                Some(img) => img,
+                None => load_geotiff(path)?,
+            };
             check_bands(bands, &img, path)?;
             (Some((img, path.as_path())), false)
         }
@@ -412,8 +479,7 @@ fn render(a: RenderArgs) -> Result<(), CliError> {
         let why = if co.notes.is_empty() { "" } else { " (nodata, or outside the source after reprojection)" };
         say!("filled {filled} missing elevation samples from their neighbours{why}");
     }
-    // no more posts than the picture can show: a 1″ tile is 13 M posts for a 0.8 M-pixel view
-    let (posts, cap) = (dem.width as u64 * dem.height as u64, (4 * a.size.0 as u64 * a.size.1 as u64).max(1 << 20));
+    let (posts, cap) = (dem.width as u64 * dem.height as u64, post_cap);
     if posts > cap {
         let k = ((posts as f64 / cap as f64).sqrt().ceil() as u32).max(2);
         let (w0, h0) = (dem.width, dem.height);

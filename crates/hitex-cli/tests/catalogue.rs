@@ -182,6 +182,19 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
         "tiles of one CRS at different resolutions",
         &["terrain", "render", "--dem", &f, &f2, "-o", &out],
     ));
+    // Cloud-Optimized GeoTIFFs: overviews hitex cannot use
+    let f = w("cog-rgb-overview.tif", &overview_of_another_type());
+    v.push(c(
+        "Cloud-Optimized GeoTIFF",
+        "an overview of another sample type than the full image",
+        &["terrain", "render", "--dem", &f, "--size", "64x48", "--backend", "cpu", "-o", &out],
+    ));
+    let f = w("cog-lost-tiles.tif", &cog_with_lost_overview_tiles());
+    v.push(c(
+        "Cloud-Optimized GeoTIFF",
+        "the overview the view needs points past the file's end",
+        &["terrain", "render", "--dem", &f, "--size", "64x48", "--backend", "cpu", "-o", &out],
+    ));
     let empty = d.join("no-dems");
     std::fs::create_dir_all(&empty).unwrap();
     v.push(c(
@@ -566,6 +579,59 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
     k.needs = Needs::Gpu;
     v.push(k);
     v
+}
+
+/// A 32×32 float DEM in UTM 32N followed by a reduced-resolution RGB image.
+fn overview_of_another_type() -> Vec<u8> {
+    use tiff::encoder::{TiffEncoder, colortype};
+    use tiff::tags::Tag;
+    let mut buf = std::io::Cursor::new(Vec::new());
+    let mut enc = TiffEncoder::new(&mut buf).unwrap();
+    let mut img = enc.new_image::<colortype::Gray32Float>(32, 32).unwrap();
+    img.encoder().write_tag(Tag::ModelPixelScaleTag, &[30.0, 30.0, 0.0][..]).unwrap();
+    img.encoder().write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, 4e5, 5.1e6, 0.0][..]).unwrap();
+    img.encoder().write_tag(Tag::GeoKeyDirectoryTag, &[1u16, 1, 0, 1, 3072, 0, 1, 32632][..]).unwrap();
+    let hill: Vec<f32> = (0..32 * 32).map(|k| 100.0 + (k % 32) as f32 * 3.0 + (k / 32) as f32).collect();
+    img.write_data(&hill).unwrap();
+    let mut img = enc.new_image::<colortype::RGB32Float>(16, 16).unwrap();
+    img.encoder().write_tag(Tag::NewSubfileType, 1u32).unwrap();
+    img.write_data(&[0.5f32; 16 * 16 * 3]).unwrap();
+    buf.into_inner()
+}
+
+/// A COG of 1100×1000 posts (more than a 64×48 view meshes) whose first
+/// overview's tile offsets point past the file's end.
+fn cog_with_lost_overview_tiles() -> Vec<u8> {
+    let (w, h) = (1100u32, 1000u32);
+    let r = hitex_io::geotiff::GeoRaster {
+        width: w,
+        height: h,
+        bands: 1,
+        data: (0..w * h).map(|k| 100.0 + (k % w) as f32 * 0.1 + (k / w) as f32 * 0.05).collect(),
+        origin: [400_000.0, 5_110_000.0],
+        pixel: [10.0, 10.0],
+        nodata: None,
+        epsg: Some(32632),
+        projection: None,
+        citation: None,
+        proj4: None,
+    };
+    let utm = hitex_io::crs::Crs::from_epsg(32632).unwrap();
+    let mut b = hitex_io::geotiff::cog_bytes(&r, &utm, 256).unwrap();
+    let u16_at = |b: &[u8], at: usize| u16::from_le_bytes([b[at], b[at + 1]]) as usize;
+    let u32_at = |b: &[u8], at: usize| u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]]) as usize;
+    // the second IFD (the first overview), found from the first's next pointer
+    let ifd1 = u32_at(&b, 10 + 12 * u16_at(&b, 8));
+    for e in 0..u16_at(&b, ifd1) {
+        let at = ifd1 + 2 + 12 * e;
+        if u16_at(&b, at) == 324 {
+            let (n, offsets) = (u32_at(&b, at + 4), u32_at(&b, at + 8));
+            for k in 0..n {
+                b[offsets + 4 * k..offsets + 4 * k + 4].copy_from_slice(&0x7fff_0000u32.to_le_bytes());
+            }
+        }
+    }
+    b
 }
 
 /// A little-endian TIFF whose one IFD declares a 16384×16384 float raster

@@ -1,5 +1,6 @@
 //! Geographic DEMs and DEM + imagery pairs in different CRSs, as users
-//! download them: reprojected into one metric CRS and rendered.
+//! download them: reprojected into one metric CRS and rendered; and
+//! Cloud-Optimized GeoTIFFs, read at the overview a view needs.
 
 mod common;
 
@@ -271,4 +272,92 @@ fn four_tiles_render_as_the_dem_they_were_cut_from() {
     let (pa, pb, pc) = (std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap(), std::fs::read(&c).unwrap());
     assert!(pa == pb, "the mosaic of the folder renders otherwise than the whole DEM");
     assert!(pa == pc, "the mosaic of the files, in any order, renders otherwise than the whole DEM");
+}
+
+/// A raster in UTM zone 32N with `bands` bands over 12 × 10 km from E 400 000, N 5 110 000.
+fn utm_raster(w: u32, h: u32, bands: usize, f: impl Fn(f64, f64, usize) -> f32) -> hitex_io::geotiff::GeoRaster {
+    let data = (0..w * h)
+        .flat_map(|k| {
+            let (x, y) = ((k % w) as f64 / w as f64, (k / w) as f64 / h as f64);
+            (0..bands).map(move |b| (x, y, b))
+        })
+        .map(|(x, y, b)| f(x, y, b))
+        .collect();
+    hitex_io::geotiff::GeoRaster {
+        width: w,
+        height: h,
+        bands,
+        data,
+        origin: [400_000.0, 5_110_000.0],
+        pixel: [12_000.0 / w as f64, 10_000.0 / h as f64],
+        nodata: None,
+        epsg: Some(32632),
+        projection: None,
+        citation: None,
+        proj4: None,
+    }
+}
+
+fn render_args<'a>(dem: &'a str, image: Option<&'a str>, out: &'a str, full: bool) -> Vec<&'a str> {
+    let mut a = vec!["terrain", "render", "--dem", dem, "-o", out, "--size", "160x120", "--backend", "cpu"];
+    if let Some(i) = image {
+        a.extend(["--image", i]);
+    }
+    if full {
+        a.push("--full-resolution");
+    }
+    a
+}
+
+#[test]
+fn a_cloud_optimized_geotiff_is_read_at_the_overview_the_view_needs() {
+    let d = tmp("cog");
+    let (dem, img) = (d.join("dem-cog.tif"), d.join("img-cog.tif"));
+    let utm = hitex_io::crs::Crs::from_epsg(32632).unwrap();
+    // 1.2 M posts: more than the 1 M a 160×120 view meshes, so every second post is enough
+    let hill = utm_raster(1200, 1000, 1, |x, y, _| {
+        let (dx, dy) = (x - 0.5, y - 0.5);
+        (300.0 + 500.0 * (-(dx * dx + dy * dy) * 10.0).exp() + 80.0 * (x * 40.0).sin() * (y * 30.0).cos()) as f32
+    });
+    std::fs::write(&dem, hitex_io::geotiff::cog_bytes(&hill, &utm, 256).unwrap()).unwrap();
+    // 1.2 M texels: twice as many as 16 a pixel along each axis
+    let photo = utm_raster(1280, 960, 3, |x, y, b| {
+        [x * 200.0 + 20.0, y * 180.0 + 30.0, 90.0 + 60.0 * (x * 25.0).sin()][b] as f32
+    });
+    std::fs::write(&img, hitex_io::geotiff::cog_bytes(&photo, &utm, 256).unwrap()).unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let (dem_s, img_s) = (s(&dem), s(&img));
+    let run = |image: Option<&str>, full: bool, name: &str| {
+        let out = s(&d.join(name));
+        let o = hitex(&render_args(&dem_s, image, &out, full));
+        let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(o.status.success(), "{stdout}{}", String::from_utf8_lossy(&o.stderr));
+        let png = image::open(&out).unwrap().to_rgba8();
+        (stdout, png)
+    };
+    // the DEM alone: its first overview is the 2×2 means that decimation makes of the full posts
+    let (said, coarse) = run(None, false, "overview.png");
+    assert!(
+        said.contains("dem-cog.tif: read overview 1 of 3 (600x500 posts, 2x coarser) of the full 1200x1000"),
+        "{said}"
+    );
+    assert!(!said.contains("meshed"), "{said}");
+    let (said, full) = run(None, true, "full.png");
+    assert!(!said.contains("overview"), "{said}");
+    assert!(said.contains("meshed 600x500 posts (the means of 2x2 blocks)"), "{said}");
+    assert!(coarse == full, "the overview renders as the decimated full DEM, byte for byte");
+    // with imagery: the first overview of the photo too, within a step or two of the full photo
+    let (said, coarse) = run(Some(&img_s), false, "overview-img.png");
+    assert!(
+        said.contains("img-cog.tif: read overview 1 of 3 (640x480 texels, 2x coarser) of the full 1280x960"),
+        "{said}"
+    );
+    let (_, full) = run(Some(&img_s), true, "full-img.png");
+    let (mut sum, mut worst) = (0u64, 0u8);
+    for (a, b) in coarse.as_raw().iter().zip(full.as_raw()) {
+        sum += a.abs_diff(*b) as u64;
+        worst = worst.max(a.abs_diff(*b));
+    }
+    let mean = sum as f64 / coarse.as_raw().len() as f64;
+    assert!(mean < 1.5 && mean > 0.0, "mean |Δ| {mean:.3} steps, worst {worst}");
 }
