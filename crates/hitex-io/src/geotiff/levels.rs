@@ -8,7 +8,7 @@
 //! image's extent over its own pixels, as GDAL writes and reads it (the
 //! overview IFDs carry no GeoKeys of their own).
 
-use super::{GeoRaster, Layout, open_decoder, read_header, read_samples};
+use super::{Claim, GeoRaster, Layout, open_decoder, read_header, read_samples};
 use crate::IoError;
 use std::io::{Read, Seek};
 use std::path::Path;
@@ -139,9 +139,10 @@ pub(super) fn level_header(full: &GeoRaster, level: &Level) -> GeoRaster {
         width: level.width,
         height: level.height,
         data: Vec::new(),
+        // the factor first: a whole factor scales the pixel exactly (as decimation does)
         pixel: [
-            full.pixel[0] * full.width as f64 / level.width as f64,
-            full.pixel[1] * full.height as f64 / level.height as f64,
+            full.pixel[0] * (full.width as f64 / level.width as f64),
+            full.pixel[1] * (full.height as f64 / level.height as f64),
         ],
         citation: full.citation.clone(),
         proj4: full.proj4.clone(),
@@ -150,22 +151,21 @@ pub(super) fn level_header(full: &GeoRaster, level: &Level) -> GeoRaster {
 }
 
 /// Positions the decoder on level `level` (after reading the full image's
-/// header from it): checks the level exists and its size against the file's
-/// `len` bytes and, when `whole`, against the memory cap; returns the
-/// level's georeferenced header and the heights' scale.
+/// header from it): checks the level exists and its size as `claim` asks;
+/// returns the level's georeferenced header and the heights' scale.
 pub(super) fn seek_level<R: Read + Seek>(
     d: &mut Decoder<R>,
     len: u64,
     path: &Path,
     level: usize,
-    whole: bool,
+    claim: Claim,
 ) -> Result<(GeoRaster, f64), IoError> {
     let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
     if level == 0 {
-        return read_header(d, len, path, whole);
+        return read_header(d, len, path, claim);
     }
     // the full image's georeferencing, without reading or claiming its samples
-    let (full, z_scale) = read_header(d, len, path, false)?;
+    let (full, z_scale) = read_header(d, len, path, Claim::Header)?;
     let layout = Layout::of(d).map_err(fmt)?;
     let levels = scan(d, &layout);
     let Some(l) = levels.levels.get(level).copied() else {
@@ -179,7 +179,7 @@ pub(super) fn seek_level<R: Read + Seek>(
     };
     d.seek_to_image(l.ifd).map_err(|e| fmt(format!("overview in image {}: {e}", l.ifd)))?;
     let here = Layout::of(d).map_err(fmt)?;
-    here.check(len, whole).map_err(|m| fmt(format!("overview in image {}: {m}", l.ifd)))?;
+    here.check(len, claim).map_err(|m| fmt(format!("overview in image {}: {m}", l.ifd)))?;
     Ok((level_header(&full, &l), z_scale))
 }
 
@@ -194,7 +194,7 @@ pub fn parse_geotiff_level<R: Read + Seek>(
     level: usize,
 ) -> Result<GeoRaster, IoError> {
     let mut d = open_decoder(reader, path)?;
-    let (r, z_scale) = seek_level(&mut d, len, path, level, true)?;
+    let (r, z_scale) = seek_level(&mut d, len, path, level, Claim::Whole)?;
     read_samples(&mut d, r, z_scale, path)
 }
 
@@ -396,6 +396,41 @@ mod tests {
     }
 
     #[test]
+    fn sizes_past_64_bits_are_refused_not_wrapped() {
+        // one strip of 2³¹ × 2³¹ pixels of 4 bands of f64: 2⁶⁴ samples and more
+        let entries: [(u16, u16, u32); 10] = [
+            (256, 4, 1 << 31),
+            (257, 4, 1 << 31),
+            (258, 3, 64),
+            (259, 3, 1),
+            (262, 3, 1),
+            (273, 4, 8),
+            (277, 3, 4),
+            (279, 4, 4),
+            (284, 3, 1),
+            (339, 3, 3),
+        ];
+        let mut b = b"II*\x00".to_vec();
+        b.extend_from_slice(&8u32.to_le_bytes());
+        b.extend_from_slice(&(entries.len() as u16).to_le_bytes());
+        for (tag, kind, v) in entries {
+            b.extend_from_slice(&tag.to_le_bytes());
+            b.extend_from_slice(&kind.to_le_bytes());
+            b.extend_from_slice(&1u32.to_le_bytes());
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        b.extend_from_slice(&[0; 8]);
+        let path = Path::new("huge.tif");
+        let len = b.len() as u64;
+        // whole: past MAX_SAMPLES; the full image above an overview: its claim past 2⁶⁴ bytes
+        for (l, says) in [(0, "outside the limit"), (1, "claims more than 2^64 bytes")] {
+            let e = parse_geotiff_level(Cursor::new(&b), len, path, l).unwrap_err().to_string();
+            assert!(e.contains("huge.tif") && e.contains(says), "{e}");
+        }
+        assert!(read_levels(Cursor::new(&b), path).is_ok_and(|l| l.levels.len() == 1));
+    }
+
+    #[test]
     fn the_writer_refuses_what_it_cannot_write() {
         let r = dem();
         let e = |levels: &[GeoRaster], tile| tiled_geotiff_bytes(levels, &utm(), tile).unwrap_err().to_string();
@@ -405,6 +440,11 @@ mod tests {
         let two = GeoRaster { bands: 2, data: vec![0.0; 200 * 150 * 2], ..dem() };
         assert!(e(&[two], 64).contains("2 bands"));
         let short = GeoRaster { data: vec![0.0; 10], ..dem() };
-        assert!(e(&[short], 64).contains("level 0"));
+        assert!(e(std::slice::from_ref(&short), 64).contains("level 0"));
+        // refused before any overview is made of it
+        assert!(cog_bytes(&short, &utm(), 64).unwrap_err().to_string().contains("level 0"));
+        assert!(cog_bytes(&dem(), &utm(), 8).unwrap_err().to_string().contains("multiple of 16"));
+        let flat = GeoRaster { height: 0, data: vec![], ..dem() };
+        assert!(e(&[flat], 64).contains("level 0"));
     }
 }

@@ -243,8 +243,9 @@ impl Layout {
         Ok(Self { width, height, bands, bits, color })
     }
 
-    fn samples(&self) -> u64 {
-        self.width as u64 * self.height as u64 * self.bands as u64
+    /// width × height × bands (None past 64 bits).
+    fn samples(&self) -> Option<u64> {
+        (self.width as u64 * self.height as u64).checked_mul(self.bands as u64)
     }
 
     /// Whether `other` stores its samples as this image does.
@@ -252,38 +253,50 @@ impl Layout {
         self.bands == other.bands && self.bits == other.bits && self.color == other.color
     }
 
-    /// Checks the declared size against the file's `len` bytes, and, when
-    /// `whole`, the decoded raster against [`MAX_SAMPLES`] and the memory cap
-    /// (read by windows, only the claim against the file's bytes matters).
-    pub(crate) fn check(&self, len: u64, whole: bool) -> Result<(), String> {
+    /// Checks the declared size as `claim` asks ([`Claim`]).
+    pub(crate) fn check(&self, len: u64, claim: Claim) -> Result<(), String> {
         let (w, h, bands) = (self.width, self.height, self.bands);
+        let what = format!("a {w}×{h} raster of {bands} band{}", if bands == 1 { "" } else { "s" });
         let samples = self.samples();
-        if whole && samples > MAX_SAMPLES {
+        if claim != Claim::Header && samples.is_none_or(|n| n > MAX_SAMPLES) {
             return Err(format!("{w}×{h} pixels of {bands} bands is outside the limit of {MAX_SAMPLES} samples"));
         }
-        let what = format!("a {w}×{h} raster of {bands} band{}", if bands == 1 { "" } else { "s" });
-        let raw = samples * (self.bits as u64).div_ceil(8).max(1);
-        if whole {
-            crate::limits::check_claim(&what, Some(raw), len, crate::limits::ANY_RATIO).map_err(|e| e.to_string())?;
-            crate::limits::check_cap(&what, Some(raw + samples * 4)).map_err(|e| e.to_string())?;
+        let raw = samples.and_then(|n| n.checked_mul((self.bits as u64).div_ceil(8).max(1)));
+        if claim == Claim::Whole {
+            crate::limits::check_claim(&what, raw, len, crate::limits::ANY_RATIO).map_err(|e| e.to_string())?;
+            let decoded = raw.zip(samples).and_then(|(r, n)| r.checked_add(n.checked_mul(4)?));
+            crate::limits::check_cap(&what, decoded).map_err(|e| e.to_string())?;
         } else {
-            crate::limits::check_backing(&what, Some(raw), len, crate::limits::ANY_RATIO).map_err(|e| e.to_string())?;
+            crate::limits::check_backing(&what, raw, len, crate::limits::ANY_RATIO).map_err(|e| e.to_string())?;
         }
         Ok(())
     }
 }
 
+/// What a reader will do with an image whose declared size it checks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Claim {
+    /// Decode it whole: at most [`MAX_SAMPLES`], backed by the file's bytes,
+    /// within the memory cap.
+    Whole,
+    /// Read it by windows: at most [`MAX_SAMPLES`], backed by the file's bytes.
+    Windows,
+    /// Read its georeferencing only (the full image above an overview that
+    /// is read): backed by the file's bytes.
+    Header,
+}
+
 /// The raster's size, band layout and georeferencing (no samples); checks
-/// the declared size as [`Layout::check`] does.
+/// the declared size as `claim` asks.
 fn read_header<R: Read + Seek>(
     d: &mut Decoder<R>,
     len: u64,
     path: &Path,
-    whole: bool,
+    claim: Claim,
 ) -> Result<(GeoRaster, f64), IoError> {
     let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
     let layout = Layout::of(d).map_err(fmt)?;
-    layout.check(len, whole).map_err(fmt)?;
+    layout.check(len, claim).map_err(fmt)?;
     let (w, h, bands) = (layout.width, layout.height, layout.bands);
     let keys = d.get_tag_u16_vec(Tag::GeoKeyDirectoryTag).unwrap_or_default();
     let key = |id: u16| keys.chunks_exact(4).skip(1).find(|k| k[0] == id && k[1] == 0).map(|k| k[3]);
@@ -366,7 +379,7 @@ fn read_header<R: Read + Seek>(
 /// what `len` bytes can hold and against the memory cap before it is decoded.
 pub fn parse_geotiff<R: Read + Seek>(reader: R, len: u64, path: &Path) -> Result<GeoRaster, IoError> {
     let mut d = open_decoder(reader, path)?;
-    let (r, z_scale) = read_header(&mut d, len, path, true)?;
+    let (r, z_scale) = read_header(&mut d, len, path, Claim::Whole)?;
     read_samples(&mut d, r, z_scale, path)
 }
 

@@ -60,7 +60,8 @@ pub fn halved(r: &GeoRaster) -> GeoRaster {
         width: w,
         height: h,
         data,
-        pixel: [r.pixel[0] * r.width as f64 / w as f64, r.pixel[1] * r.height as f64 / h as f64],
+        // the factor first: a whole factor scales the pixel exactly (as decimation does)
+        pixel: [r.pixel[0] * (r.width as f64 / w as f64), r.pixel[1] * (r.height as f64 / h as f64)],
         citation: r.citation.clone(),
         proj4: r.proj4.clone(),
         ..*r
@@ -70,6 +71,9 @@ pub fn halved(r: &GeoRaster) -> GeoRaster {
 /// A COG of `r` in `crs` with `tile`-pixel tiles: the full raster, then
 /// overviews by [`halved`] until one tile holds the level.
 pub fn cog_bytes(r: &GeoRaster, crs: &Crs, tile: u32) -> Result<Vec<u8>, DataError> {
+    // the full raster checked before any overview is made of it
+    check_tile(tile)?;
+    check_level(r, 0, r.bands)?;
     let mut levels = vec![r.clone()];
     while let Some(last) = levels.last()
         && (last.width > tile || last.height > tile)
@@ -81,26 +85,46 @@ pub fn cog_bytes(r: &GeoRaster, crs: &Crs, tile: u32) -> Result<Vec<u8>, DataErr
     tiled_geotiff_bytes(&levels, crs, tile)
 }
 
+/// Checks a tile size: a multiple of 16 (as TIFF asks), up to 4096.
+fn check_tile(tile: u32) -> Result<(), DataError> {
+    if tile == 0 || !tile.is_multiple_of(16) || tile > 4096 {
+        return Err(DataError::from(format!("tiles of {tile} pixels: a multiple of 16 up to 4096 is needed")));
+    }
+    Ok(())
+}
+
+/// Checks that level `i` holds its samples: `bands` of them (1 or 3) on
+/// each of at least one pixel.
+fn check_level(l: &GeoRaster, i: usize, bands: usize) -> Result<(), DataError> {
+    if bands != 1 && bands != 3 {
+        return Err(DataError::from(format!("{bands} bands: 1 (elevation) or 3 (RGB) can be written")));
+    }
+    if l.width == 0 || l.height == 0 || l.bands != bands || l.data.len() != l.width as usize * l.height as usize * bands
+    {
+        return Err(DataError::from(format!(
+            "level {i}: {} samples for {}×{}×{}",
+            l.data.len(),
+            l.width,
+            l.height,
+            l.bands
+        )));
+    }
+    Ok(())
+}
+
 /// A tiled GeoTIFF of `levels` (the full raster, then its overviews, each
 /// smaller than the one before, all of one extent and of 1 or 3 bands) in
 /// `crs`, with `tile`×`tile` tiles (a multiple of 16), laid out as a COG.
 pub fn tiled_geotiff_bytes(levels: &[GeoRaster], crs: &Crs, tile: u32) -> Result<Vec<u8>, DataError> {
     let bad = |m: String| DataError::from(m);
     let Some(full) = levels.first() else { return Err(bad("no image to write".into())) };
-    if tile == 0 || !tile.is_multiple_of(16) || tile > 4096 {
-        return Err(bad(format!("tiles of {tile} pixels: a multiple of 16 up to 4096 is needed")));
-    }
+    check_tile(tile)?;
     let bands = full.bands;
-    if bands != 1 && bands != 3 {
-        return Err(bad(format!("{bands} bands: 1 (elevation) or 3 (RGB) can be written")));
-    }
     for (i, l) in levels.iter().enumerate() {
-        if l.bands != bands || l.data.len() != l.width as usize * l.height as usize * bands {
-            return Err(bad(format!("level {i}: {} samples for {}×{}×{}", l.data.len(), l.width, l.height, l.bands)));
-        }
+        check_level(l, i, bands)?;
         if i > 0 {
             let p = &levels[i - 1];
-            if l.width > p.width || l.height > p.height || (l.width, l.height) == (p.width, p.height) || l.width == 0 {
+            if l.width > p.width || l.height > p.height || (l.width, l.height) == (p.width, p.height) {
                 return Err(bad(format!("level {i} of {}×{} is not smaller than the one before", l.width, l.height)));
             }
         }

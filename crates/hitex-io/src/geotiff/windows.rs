@@ -2,7 +2,7 @@
 //! are decoded, so that sources far larger than memory can be processed.
 
 use super::levels::seek_level;
-use super::{GeoRaster, open_decoder, to_f32};
+use super::{Claim, GeoRaster, open_decoder, to_f32};
 use crate::IoError;
 use std::path::Path;
 use tiff::decoder::Decoder;
@@ -39,7 +39,7 @@ impl GeoTiffWindows {
         let file = std::fs::File::open(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
         let len = file.metadata().map_err(|source| IoError::Read { path: path.to_path_buf(), source })?.len();
         let mut d = open_decoder(std::io::BufReader::new(file), path)?;
-        let (header, _) = seek_level(&mut d, len, path, level, false)?;
+        let (header, _) = seek_level(&mut d, len, path, level, Claim::Windows)?;
         let planar = d.get_tag_u32(Tag::PlanarConfiguration).unwrap_or(1);
         if planar != 1 {
             return Err(fmt("bands stored as separate planes: windowed reading needs interleaved bands".into()));
