@@ -398,12 +398,22 @@ fn read_samples<R: Read + Seek>(
         return Err(fmt(format!("{} samples decoded, {samples} declared", data.len())));
     }
     r.data = data;
-    if z_scale != 1.0 {
-        r.data.iter_mut().for_each(|v| *v = (*v as f64 * z_scale) as f32);
-        // the same conversion as the samples', so that nodata still matches them exactly
-        r.nodata = r.nodata.map(|n| ((n as f32) as f64 * z_scale) as f32 as f64);
-    }
+    scale_heights(&mut r.data, z_scale);
+    r.nodata = scaled_nodata(r.nodata, z_scale);
     Ok(r)
+}
+
+/// Heights read in the file's vertical unit, in metres (`z_scale` metres a unit).
+fn scale_heights(data: &mut [f32], z_scale: f64) {
+    if z_scale != 1.0 {
+        data.iter_mut().for_each(|v| *v = (*v as f64 * z_scale) as f32);
+    }
+}
+
+/// The nodata value as [`scale_heights`] converts the samples, so that it
+/// still matches them exactly.
+fn scaled_nodata(nodata: Option<f64>, z_scale: f64) -> Option<f64> {
+    if z_scale == 1.0 { nodata } else { nodata.map(|n| ((n as f32) as f64 * z_scale) as f32 as f64) }
 }
 
 fn to_f32(r: DecodingResult) -> Result<Vec<f32>, String> {

@@ -2,7 +2,7 @@
 //! are decoded, so that sources far larger than memory can be processed.
 
 use super::levels::seek_level;
-use super::{Claim, GeoRaster, open_decoder, to_f32};
+use super::{Claim, GeoRaster, open_decoder, scale_heights, scaled_nodata, to_f32};
 use crate::IoError;
 use std::path::Path;
 use tiff::decoder::Decoder;
@@ -12,8 +12,12 @@ use tiff::tags::Tag;
 /// decoded (a few are kept, within [`GeoTiffWindows::CACHE_BYTES`]), so
 /// sources far larger than memory can be processed.
 pub struct GeoTiffWindows {
-    /// Size, bands and georeferencing (`data` is empty).
+    /// Size, bands and georeferencing (`data` is empty; nodata in metres
+    /// where the file's heights are in another vertical unit).
     pub header: GeoRaster,
+    /// Metres per unit of the file's heights (VerticalUnitsGeoKey): windows
+    /// come back in metres, as whole reads do.
+    z_scale: f64,
     path: std::path::PathBuf,
     decoder: std::sync::Mutex<Decoder<std::io::BufReader<std::fs::File>>>,
     /// Chunk (strip or tile) width and height.
@@ -39,7 +43,8 @@ impl GeoTiffWindows {
         let file = std::fs::File::open(path).map_err(|source| IoError::Read { path: path.to_path_buf(), source })?;
         let len = file.metadata().map_err(|source| IoError::Read { path: path.to_path_buf(), source })?.len();
         let mut d = open_decoder(std::io::BufReader::new(file), path)?;
-        let (header, _) = seek_level(&mut d, len, path, level, Claim::Windows)?;
+        let (mut header, z_scale) = seek_level(&mut d, len, path, level, Claim::Windows)?;
+        header.nodata = scaled_nodata(header.nodata, z_scale);
         let planar = d.get_tag_u32(Tag::PlanarConfiguration).unwrap_or(1);
         if planar != 1 {
             return Err(fmt("bands stored as separate planes: windowed reading needs interleaved bands".into()));
@@ -58,6 +63,7 @@ impl GeoTiffWindows {
         let across = header.width.div_ceil(chunk.0);
         Ok(Self {
             header,
+            z_scale,
             path: path.to_path_buf(),
             decoder: std::sync::Mutex::new(d),
             chunk,
@@ -94,7 +100,8 @@ impl GeoTiffWindows {
     }
 
     /// Samples of the window at (x0, y0) of `w`×`h` pixels (inside the
-    /// raster), bands interleaved, rows north to south.
+    /// raster), bands interleaved, rows north to south; heights in metres
+    /// (the same values as a whole read's).
     pub fn window(&self, x0: u32, y0: u32, w: u32, h: u32) -> Result<Vec<f32>, IoError> {
         let r = &self.header;
         if x0.checked_add(w).is_none_or(|x| x > r.width) || y0.checked_add(h).is_none_or(|y| y > r.height) {
@@ -128,6 +135,7 @@ impl GeoTiffWindows {
                 }
             }
         }
+        scale_heights(&mut out, self.z_scale);
         Ok(out)
     }
 }
@@ -164,5 +172,36 @@ mod tests {
         }
         assert!(win.window(w - 1, 0, 2, 1).is_err());
         assert!(win.window(0, u32::MAX, 1, 2).is_err());
+    }
+
+    #[test]
+    fn windows_of_a_dem_in_feet_come_back_in_metres_as_whole_reads_do() {
+        use tiff::encoder::{TiffEncoder, colortype};
+        let dir = crate::test_dir::TestDir::fresh("windows-feet");
+        let path = dir.join("feet.tif");
+        let (w, h) = (5u32, 4u32);
+        let mut v: Vec<i16> = (0..(w * h) as i16).map(|k| 100 + 7 * k).collect();
+        v[6] = -9999;
+        {
+            let file = std::fs::File::create(&path).unwrap();
+            let mut enc = TiffEncoder::new(file).unwrap();
+            let mut img = enc.new_image::<colortype::GrayI16>(w, h).unwrap();
+            img.encoder().write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, 500_000.0, 4_000_000.0, 0.0][..]).unwrap();
+            img.encoder().write_tag(Tag::ModelPixelScaleTag, &[30.0, 30.0, 0.0][..]).unwrap();
+            // projected UTM 32N, heights in feet (VerticalUnitsGeoKey 9002)
+            let keys: [u16; 16] = [1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 32632, 4099, 0, 1, 9002];
+            img.encoder().write_tag(Tag::GeoKeyDirectoryTag, &keys[..]).unwrap();
+            img.encoder().write_tag(Tag::GdalNodata, "-9999").unwrap();
+            img.write_data(&v).unwrap();
+        }
+        let whole = load_geotiff(&path).unwrap();
+        let win = GeoTiffWindows::open(&path).unwrap();
+        // 100 ft = 30.48 m; nodata converted alike, so it still matches its samples
+        assert!((whole.data[0] - 30.48).abs() < 1e-4, "{}", whole.data[0]);
+        assert_eq!(win.header.nodata, whole.nodata);
+        assert_eq!(win.window(0, 0, w, h).unwrap(), whole.data);
+        let part = win.window(1, 1, 2, 2).unwrap();
+        assert_eq!(part, [whole.get(1, 1, 0), whole.get(2, 1, 0), whole.get(1, 2, 0), whole.get(2, 2, 0)]);
+        assert_eq!(part[0] as f64, whole.nodata.unwrap());
     }
 }
