@@ -156,43 +156,30 @@ pub struct RenderArgs {
 /// needed (or is within the cap, or the file has no overviews, or the
 /// overview cannot be read: said in a warning).
 fn overview_for(path: &Path, what: &str, cap: u64, ceil: bool) -> Result<Option<GeoRaster>, CliError> {
+    use hitex_io::geotiff::Coarsening;
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
     if ext != "tif" && ext != "tiff" {
         return Ok(None);
     }
-    let levels = hitex_io::geotiff::geotiff_levels(path)?;
-    for n in &levels.notes {
+    let how = if ceil { Coarsening::WholeBlocks } else { Coarsening::Exact };
+    let v = hitex_io::geotiff::load_for_view(path, cap, how)?;
+    for n in &v.notes {
         eprintln!("hitex: warning: {}: {n}", path.display());
     }
-    let full = levels.levels[0];
-    let pixels = full.width as u64 * full.height as u64;
-    if pixels <= cap || levels.levels.len() < 2 {
-        return Ok(None);
-    }
-    let k = (pixels as f64 / cap as f64).sqrt();
-    let l = levels.coarsest_within(if ceil { k.ceil().max(2.0) } else { k });
-    if l == 0 {
-        return Ok(None);
-    }
-    let r = match hitex_io::geotiff::load_geotiff_level(path, l) {
-        Ok(r) => r,
-        Err(e) => {
-            eprintln!("hitex: warning: overview {l} of {e}; the full image is read instead");
-            return Ok(None);
-        }
-    };
+    let Some(l) = v.read else { return Ok(None) };
     say!(
-        "{}: read overview {l} of {} ({}x{} {what}, {:.0}x coarser) of the full {}x{}: enough for the view \
+        "{}: read overview {} of {} ({}x{} {what}, {:.0}x coarser) of the full {}x{}: enough for the view \
          (--full-resolution reads the full image)",
         path.display(),
-        levels.levels.len() - 1,
-        r.width,
-        r.height,
-        levels.factor(l),
-        full.width,
-        full.height
+        l.level,
+        l.overviews,
+        l.raster.width,
+        l.raster.height,
+        l.factor,
+        l.full.0,
+        l.full.1
     );
-    Ok(Some(r))
+    Ok(Some(l.raster))
 }
 
 /// Band values stretched from their 2nd to 98th percentile into an sRGB image.

@@ -205,6 +205,83 @@ pub fn load_geotiff_level(path: &Path, level: usize) -> Result<GeoRaster, IoErro
     parse_geotiff_level(std::io::BufReader::new(file), len, path, level)
 }
 
+/// How [`load_for_view`] turns "at least `cap` pixels" into a decimation factor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Coarsening {
+    /// The factor rounded up (at least 2), as a reader that keeps one post
+    /// of each whole k×k block: an overview at most that much coarser.
+    WholeBlocks,
+    /// The factor as it is: the overview keeps at least `cap` pixels' worth
+    /// of detail (imagery resampled onto a view).
+    Exact,
+}
+
+/// A level read by [`load_for_view`] in place of the full image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LevelRead {
+    /// The level's samples and georeferencing.
+    pub raster: GeoRaster,
+    /// Its number (1: the finest overview).
+    pub level: usize,
+    /// How many overviews the file has.
+    pub overviews: usize,
+    /// How many times coarser than the full image it is along x.
+    pub factor: f64,
+    /// The full image's columns and rows.
+    pub full: (u32, u32),
+}
+
+/// What [`load_for_view`] found: the level read (None: the caller needs the
+/// full image) and the lines worth telling a user (overviews passed over, an
+/// overview that could not be read and was given up for the full image).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewLevel {
+    /// The overview read, or None.
+    pub read: Option<LevelRead>,
+    /// One line each, without the file's name.
+    pub notes: Vec<String>,
+}
+
+/// Reads the coarsest level of the GeoTIFF at `path` that still serves a
+/// view needing `cap` pixels of it: with `k` = √(full pixels / cap), the
+/// coarsest overview at most `k` times coarser (`how` rounds `k`). None in
+/// [`ViewLevel::read`] when the full image is within `cap`, the file has no
+/// overview fine enough, or the overview chosen cannot be read (said in a
+/// note): the caller then reads the full image its own way.
+pub fn load_for_view(path: &Path, cap: u64, how: Coarsening) -> Result<ViewLevel, IoError> {
+    let levels = geotiff_levels(path)?;
+    let mut notes = levels.notes.clone();
+    let full = levels.levels[0];
+    let pixels = full.width as u64 * full.height as u64;
+    if pixels <= cap.max(1) || levels.levels.len() < 2 {
+        return Ok(ViewLevel { read: None, notes });
+    }
+    let k = (pixels as f64 / cap.max(1) as f64).sqrt();
+    let l = levels.coarsest_within(match how {
+        Coarsening::WholeBlocks => k.ceil().max(2.0),
+        Coarsening::Exact => k,
+    });
+    if l == 0 {
+        return Ok(ViewLevel { read: None, notes });
+    }
+    match load_geotiff_level(path, l) {
+        Ok(raster) => Ok(ViewLevel {
+            read: Some(LevelRead {
+                raster,
+                level: l,
+                overviews: levels.levels.len() - 1,
+                factor: levels.factor(l),
+                full: (full.width, full.height),
+            }),
+            notes,
+        }),
+        Err(e) => {
+            notes.push(format!("overview {l} cannot be read ({e}); the full image is read instead"));
+            Ok(ViewLevel { read: None, notes })
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::tiled::{cog_bytes, halved, tiled_geotiff_bytes};
@@ -312,6 +389,38 @@ mod tests {
         assert_eq!(parse_geotiff_level(Cursor::new(cut), len, path, 1).unwrap().data, halved(&r).data);
         let e = parse_geotiff_level(Cursor::new(cut), len, path, 0).unwrap_err().to_string();
         assert!(e.contains("cut.tif"), "{e}");
+    }
+
+    #[test]
+    fn a_view_reads_the_coarsest_level_that_serves_it() {
+        let dir = crate::test_dir::TestDir::fresh("geotiff-view-level");
+        let path = dir.join("cog.tif");
+        let r = dem();
+        // levels 200×150, 100×75, 50×38 in uncompressed 64×64 tiles, coarsest first
+        let bytes = cog_bytes(&r, &utm(), 64).unwrap();
+        std::fs::write(&path, &bytes).unwrap();
+        let read = |cap, how| load_for_view(&path, cap, how).unwrap();
+        // the full image within the cap: nothing read
+        assert_eq!(read(30_000, Coarsening::Exact), ViewLevel { read: None, notes: vec![] });
+        // 4× fewer pixels: k = 2, the first overview
+        let v = read(7_500, Coarsening::Exact).read.unwrap();
+        assert_eq!((v.level, v.overviews, v.factor, v.full), (1, 2, 2.0, (200, 150)));
+        assert_eq!(v.raster.data, halved(&r).data);
+        // k = 1.5: exact keeps the detail (the full image), whole blocks round up to 2
+        assert!(read(13_334, Coarsening::Exact).read.is_none());
+        assert_eq!(read(13_334, Coarsening::WholeBlocks).read.unwrap().level, 1);
+        // far coarser than the last overview: the coarsest there is
+        assert_eq!(read(10, Coarsening::Exact).read.unwrap().level, 2);
+        assert_eq!(read(0, Coarsening::WholeBlocks).read.unwrap().level, 2);
+        // the first overview's last tiles cut off: said, and the full image left to the caller
+        let tile = 64 * 64 * 4;
+        std::fs::write(&path, &bytes[..bytes.len() - 12 * tile - 3 * tile]).unwrap();
+        let v = read(7_500, Coarsening::Exact);
+        assert!(v.read.is_none());
+        assert!(v.notes.iter().any(|n| n.starts_with("overview 1 cannot be read")), "{:?}", v.notes);
+        // a plain GeoTIFF has no overviews
+        std::fs::write(&path, tiled_geotiff_bytes(std::slice::from_ref(&r), &utm(), 64).unwrap()).unwrap();
+        assert!(read(10, Coarsening::Exact).read.is_none());
     }
 
     #[test]

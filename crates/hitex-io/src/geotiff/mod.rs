@@ -21,7 +21,10 @@ pub mod windows;
 
 use geokeys::{GeoKeys, geokeys, user_defined_projection};
 
-pub use levels::{Level, Levels, MAX_IFDS, geotiff_levels, load_geotiff_level, parse_geotiff_level, read_levels};
+pub use levels::{
+    Coarsening, Level, LevelRead, Levels, MAX_IFDS, ViewLevel, geotiff_levels, load_for_view, load_geotiff_level,
+    parse_geotiff_level, read_levels,
+};
 pub use tiled::{cog_bytes, halved, tiled_geotiff_bytes};
 pub use windows::GeoTiffWindows;
 
