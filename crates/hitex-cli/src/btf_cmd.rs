@@ -97,9 +97,23 @@ pub enum BtfCommand {
         #[arg(long, value_enum, default_value_t = SetFormatArg::Png)]
         format: SetFormatArg,
     },
+    /// Compress a BTF by local PCA into a file every `btf` command reads
+    /// (rendered straight from the compressed form).
+    Compress {
+        /// Input `.hbtf` (or a material name, synthesised on the fly).
+        input: String,
+        /// Output `.hbtf` (a compressed one).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// CLUSTERS,COMPONENTS: clusters of sample texels, principal
+        /// components kept per cluster (e.g. 64,8).
+        #[arg(long, value_parser = parse_pca)]
+        pca: PcaOptions,
+    },
     /// Render a BTF on a surface through one codebook layout.
     Render {
-        /// Input `.hbtf` (or a material name, synthesised on the fly).
+        /// Input `.hbtf`, compressed or not (`btf compress`), or a material
+        /// name, synthesised on the fly.
         input: String,
         /// Output PNG.
         #[arg(short, long)]
@@ -300,6 +314,19 @@ fn planar_uvs(mesh: &hitex_core::scene::Mesh) -> Result<hitex_core::scene::Mesh,
         mesh.indices.clone(),
     )
     .map_err(|e| CliError::Input(e.to_string()))
+}
+
+/// A `.hbtf` path (its local PCA too when the file is a compressed one,
+/// the BTF then its reconstruction), or a material name synthesised with
+/// the paper's defaults.
+pub fn load_or_synth_pca(input: &str, quiet: bool) -> Result<(Btf, Option<LocalPca>), CliError> {
+    let path = Path::new(input);
+    if path.is_file() && hitex_io::btf_pca_file::read_pca_header(path).is_ok() {
+        let pca = hitex_io::btf_pca_file::read_pca_file(path)?;
+        let btf = hitex_io::btf_pca_file::decompressed(&pca, path)?;
+        return Ok((btf, Some(pca)));
+    }
+    Ok((load_or_synth(input, quiet)?, None))
 }
 
 /// A `.hbtf` path, or a material name synthesised with the paper's defaults.
@@ -519,10 +546,24 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             Ok(())
         }
         BtfCommand::Info { input } => {
-            let btf = load_or_synth(&input, true)?;
+            let (btf, pca) = load_or_synth_pca(&input, true)?;
             let g = btf.grid();
             say!("{input}");
             say!("  sample: {}x{} texels", btf.width(), btf.height());
+            if let Some(p) = &pca {
+                say!(
+                    "  compressed: local PCA, {} cluster{} × {} component{}, {:.2} MiB for {:.2} MiB of {} texels (1:{:.1}); \
+                     what follows describes its reconstruction",
+                    p.clusters(),
+                    if p.clusters() == 1 { "" } else { "s" },
+                    p.components(),
+                    if p.components() == 1 { "" } else { "s" },
+                    p.bytes() as f64 / 1048576.0,
+                    p.raw_bytes() as f64 / 1048576.0,
+                    if p.is_hdr() { "half-float" } else { "8-bit" },
+                    p.ratio()
+                );
+            }
             match btf.hdr() {
                 Some(h) => {
                     let max = h.half.iter().map(|&v| hitex_core::btf::dataset::half_value(v)).fold(0.0, f32::max);
@@ -713,6 +754,24 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             say!("wrote {n} images to {} ({what})", output.display());
             Ok(())
         }
+        BtfCommand::Compress { input, output, pca } => {
+            let (btf, stored) = load_or_synth_pca(&input, false)?;
+            if stored.is_some() {
+                return Err(CliError::Input(format!(
+                    "{input} is already compressed by local PCA: compress the BTF it was made from"
+                )));
+            }
+            let (p, _) = pca_with_progress(&btf, pca, false)?;
+            hitex_io::btf_pca_file::write_pca_file(&output, &p)?;
+            let len = std::fs::metadata(&output).map(|m| m.len()).unwrap_or(0);
+            say!(
+                "wrote {} ({:.2} MiB; `btf render` draws it from the basis, every other `btf` command from its \
+                 reconstruction)",
+                output.display(),
+                len as f64 / 1048576.0
+            );
+            Ok(())
+        }
         BtfCommand::Render {
             input,
             output,
@@ -757,7 +816,18 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 )));
             }
             let layout = parse_layout(&layout)?;
-            let btf = load_or_synth(&input, false)?;
+            let (btf, stored) = load_or_synth_pca(&input, false)?;
+            if stored.is_some() && pca.is_some() {
+                return Err(CliError::Input(format!(
+                    "{input} is already compressed by local PCA: drop --pca to render it as it is"
+                )));
+            }
+            if stored.is_some() && (bc1 || mip == MipArg::On) {
+                return Err(CliError::Input(format!(
+                    "{input} is compressed by local PCA, rendered without BC1 and without MIP mapping: drop {}",
+                    if bc1 { "--bc1" } else { "--mip on" }
+                )));
+            }
             let map = match index {
                 Some(p) => load_index(&p, &btf)?,
                 None => index_with_progress(&btf, 128, 1, 3, false)?,
@@ -777,8 +847,18 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 );
                 Ok((PreparedBtf::with_mip(&m, layout, enc, surface)?, note))
             };
-            let (mut prepared, mip_note) = match (pca, mip) {
-                (Some(opts), _) => {
+            let (mut prepared, mip_note) = match (stored.as_ref(), pca, mip) {
+                (Some(p), _, _) => {
+                    let note = format!(
+                        ", local PCA {}x{} read from the file (1:{:.1}; {} basis images read per cluster), without MIP",
+                        p.clusters(),
+                        p.components(),
+                        p.ratio(),
+                        p.components() + 1
+                    );
+                    (PreparedBtf::with_pca(p, layout, map.clone(), surface)?, note)
+                }
+                (None, Some(opts), _) => {
                     let (pca, psnr) = pca_with_progress(&btf, opts, false)?;
                     let note = format!(
                         ", local PCA {}x{} (1:{:.1}, {psnr:.1} dB; {} basis images read per cluster), without MIP",
@@ -789,9 +869,11 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                     );
                     (PreparedBtf::with_pca(&pca, layout, map.clone(), surface)?, note)
                 }
-                (None, MipArg::Off) => (PreparedBtf::new(&btf, layout, enc, map.clone(), surface)?, String::new()),
-                (None, MipArg::On) => with_mip(surface)?,
-                (None, MipArg::Auto) => match with_mip(surface.clone()) {
+                (None, None, MipArg::Off) => {
+                    (PreparedBtf::new(&btf, layout, enc, map.clone(), surface)?, String::new())
+                }
+                (None, None, MipArg::On) => with_mip(surface)?,
+                (None, None, MipArg::Auto) => match with_mip(surface.clone()) {
                     Ok(p) => p,
                     // a pyramid that does not fit; anything else is an error
                     Err(CliError::Input(e)) => {
@@ -824,10 +906,11 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 String::new()
             };
             // a PCA pixel reads its k + 1 basis images per cluster among its four index texels
-            let reads = match pca {
-                Some(o) => format!(
+            let components = stored.as_ref().map(|p| p.components() as usize).or(pca.map(|o| o.components));
+            let reads = match components {
+                Some(k) => format!(
                     "{} codebook reads per pixel and cluster among its index texels",
-                    layout.codebook_reads() as usize * (o.components + 1) / 4
+                    layout.codebook_reads() as usize * (k + 1) / 4
                 ),
                 None => format!("{} codebook reads per pixel", layout.codebook_reads()),
             };

@@ -226,6 +226,29 @@ fn cases(d: &Path, mounts: &mut Vec<Tmpfs>) -> Vec<Case> {
     let hb = w("ok.hbtf", include_bytes!("../../../fuzz/seeds/hbtf/knit-4.hbtf"));
     v.push(c(".hbtf", "valid, but beyond --max-memory 1K", &["--max-memory", "1K", "btf", "info", &hb]));
     v.push(c("--max-memory", "not a size", &["--max-memory", "lots", "btf", "info", &hb]));
+    // BTFs compressed by local PCA
+    let pca: &[u8] = include_bytes!("../../../fuzz/seeds/hbtf_pca/knit-4-pca.hbtf");
+    let body = 56 + 4 * u32::from_le_bytes([pca[20], pca[21], pca[22], pca[23]]) as usize;
+    let recrc = |b: &mut Vec<u8>| {
+        let crc = hitex_io::btf_file::crc32(&b[body..]);
+        b[body - 4..body].copy_from_slice(&crc.to_le_bytes());
+    };
+    let mut b = pca.to_vec();
+    b[body..body + 2].copy_from_slice(&9u16.to_le_bytes());
+    recrc(&mut b);
+    v.push(c(".hbtf (local PCA)", "a texel in a cluster past the count", &["btf", "info", &w("cluster.hbtf", &b)]));
+    let mut b = pca.to_vec();
+    b[32..36].copy_from_slice(&3u32.to_le_bytes());
+    v.push(c(".hbtf (local PCA)", "more clusters than the payload holds", &["btf", "info", &w("clusters.hbtf", &b)]));
+    let f = w("cut.hbtf", &pca[..pca.len() - 10]);
+    v.push(c(".hbtf (local PCA)", "truncated", &["btf", "info", &f]));
+    let hp = w("ok-pca.hbtf", pca);
+    v.push(c(
+        ".hbtf (local PCA)",
+        "valid, its reconstruction beyond --max-memory 4K",
+        &["--max-memory", "4K", "btf", "info", &hp],
+    ));
+    v.push(c("btf render", "--pca on a compressed BTF", &["btf", "render", &hp, "--pca", "2,1", "-o", &out]));
     v.push(c(
         "STEP",
         "no B-rep faces (points only)",

@@ -490,6 +490,54 @@ fn btf_synth_info_index_render_export_import() {
 }
 
 #[test]
+fn a_compressed_btf_is_written_once_and_rendered_from_its_file() {
+    let d = tmp("btf-pca");
+    let (h, c) = (d.join("w.hbtf"), d.join("w-pca.hbtf"));
+    let (hs, cs) = (h.to_str().unwrap(), c.to_str().unwrap());
+    let o = hitex(&["btf", "synth", "woven", "-o", hs, "--size", "8", "--theta", "0,30,60", "--phi", "6"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = hitex(&["btf", "compress", hs, "--pca", "1,2", "-o", cs]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // smaller than the source on disk, and said to be compressed
+    assert!(std::fs::metadata(&c).unwrap().len() * 4 < std::fs::metadata(&h).unwrap().len());
+    let o = hitex(&["btf", "info", cs]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("compressed: local PCA, 1 cluster × 2 components") && text.contains("324 images"), "{text}");
+    // rendered from the file: the image of fitting the same PCA at render time
+    let idx = d.join("i.png");
+    let o = hitex(&["btf", "index", hs, "--size", "16", "-o", idx.to_str().unwrap(), "--passes", "1"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let render = |input: &str, extra: &[&str], out: &str| {
+        let out = d.join(out);
+        let mut args = vec!["btf", "render", input, "--index", idx.to_str().unwrap(), "--size", "64x48"];
+        args.extend(["--backend", "cpu", "-o", out.to_str().unwrap()]);
+        args.extend(extra);
+        let o = hitex(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (std::fs::read(out).unwrap(), String::from_utf8_lossy(&o.stdout).to_string())
+    };
+    let (from_file, said) = render(cs, &[], "file.png");
+    assert!(said.contains("local PCA 1x2 read from the file"), "{said}");
+    let (fitted, _) = render(hs, &["--pca", "1,2"], "fitted.png");
+    assert_eq!(from_file, fitted, "the stored PCA renders unlike the same fit made at render time");
+    // what does not apply to a compressed file is refused by name
+    for (extra, want) in [(&["--pca", "4,3"][..], "already compressed"), (&["--bc1"][..], "drop --bc1")] {
+        let out = d.join("x.png");
+        let mut args = vec!["btf", "render", cs, "-o", out.to_str().unwrap()];
+        args.extend(extra);
+        let o = hitex(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.code() == Some(2) && err.contains("w-pca.hbtf") && err.contains(want), "{err}");
+    }
+    let o = hitex(&["btf", "compress", cs, "--pca", "2,1", "-o", d.join("again.hbtf").to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("already compressed"));
+    // other commands read its reconstruction
+    let set = d.join("set");
+    let o = hitex(&["btf", "export", cs, "-o", set.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
 fn btf_render_falls_back_without_mip_where_the_pyramid_cannot_fit() {
     // a 4×600 sample: its pyramid would stack more than 1024 rows
     let d = tmp("btf-tall");

@@ -205,13 +205,19 @@ pub(crate) fn write_atomic_with(
     Ok(())
 }
 
-/// Reads an `.hbtf` file, checking its header, sizes and CRC.
+/// Reads an `.hbtf` file, checking its header, sizes and CRC. A BTF
+/// compressed by local PCA ([`crate::btf_pca_file`]) is read too, as its
+/// reconstruction ([`crate::btf_pca_file::decompressed`]).
 pub fn read_hbtf(path: &Path) -> Result<Btf, IoError> {
     let rerr = |source: std::io::Error| IoError::Read { path: path.to_path_buf(), source };
     let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
     let file = std::fs::File::open(path).map_err(rerr)?;
     let len = file.metadata().map_err(rerr)?.len();
     let mut r = std::io::BufReader::new(file);
+    if crate::btf_pca_file::is_pca_file(std::io::BufRead::fill_buf(&mut r).map_err(rerr)?) {
+        let p = crate::btf_pca_file::read_pca_file(path)?;
+        return crate::btf_pca_file::decompressed(&p, path);
+    }
     let header = read_header(&mut r, len, path)?;
     // the header checks bound the payloads by both the shape limit and the file length
     let mut read_payload = |n: u64, what: &str, recorded: u32| -> Result<Vec<u8>, IoError> {
@@ -288,10 +294,15 @@ pub fn read_hbtf_header(path: &Path) -> Result<HbtfHeader, IoError> {
     Ok(header)
 }
 
-/// Parses a whole `.hbtf` file held in memory; `name` is the file named in
-/// errors. All checks of [`read_hbtf`] apply.
+/// Parses a whole `.hbtf` file held in memory (either kind, as
+/// [`read_hbtf`]); `name` is the file named in errors. All checks of
+/// [`read_hbtf`] apply.
 pub fn hbtf_from_bytes(bytes: &[u8], name: &str) -> Result<Btf, IoError> {
     let path = Path::new(name);
+    if crate::btf_pca_file::is_pca_file(bytes) {
+        let p = crate::btf_pca_file::pca_from_bytes(bytes, name)?;
+        return crate::btf_pca_file::decompressed(&p, path);
+    }
     let fmt = |m: String| IoError::Format { path: path.to_path_buf(), message: m };
     let mut r = bytes;
     let header = read_header(&mut r, bytes.len() as u64, path)?;

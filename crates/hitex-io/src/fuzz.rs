@@ -19,8 +19,10 @@ pub enum Target {
     NurbsJson,
     /// Scene TOML, parsed and resolved (files are refused).
     Scene,
-    /// `.hbtf` BTF files.
+    /// `.hbtf` BTF files (either kind).
     Hbtf,
+    /// `.hbtf` BTFs compressed by local PCA, read, then reconstructed.
+    HbtfPca,
     /// BTF image-set file names: one name per line, each made a 4×4 PNG in a
     /// folder that is then imported.
     BtfNames,
@@ -57,12 +59,13 @@ pub enum Target {
 
 impl Target {
     /// Every target.
-    pub const ALL: [Target; 19] = [
+    pub const ALL: [Target; 20] = [
         Target::Iges,
         Target::ObjFreeform,
         Target::NurbsJson,
         Target::Scene,
         Target::Hbtf,
+        Target::HbtfPca,
         Target::BtfNames,
         Target::Geotiff,
         Target::Hgt,
@@ -87,6 +90,7 @@ impl Target {
             Target::NurbsJson => "nurbs_json",
             Target::Scene => "scene",
             Target::Hbtf => "hbtf",
+            Target::HbtfPca => "hbtf_pca",
             Target::BtfNames => "btf_names",
             Target::Geotiff => "geotiff",
             Target::Hgt => "hgt",
@@ -123,6 +127,10 @@ pub fn run(target: Target, data: &[u8]) -> bool {
             Err(_) => false,
         },
         Target::Hbtf => crate::btf_file::hbtf_from_bytes(data, "fuzz.hbtf").is_ok(),
+        Target::HbtfPca => match crate::btf_pca_file::pca_from_bytes(data, "fuzz.hbtf") {
+            Ok(p) => crate::btf_pca_file::decompressed(&p, Path::new("fuzz.hbtf")).is_ok(),
+            Err(_) => false,
+        },
         Target::BtfNames => btf_names(data),
         Target::Geotiff => {
             let path = Path::new("fuzz.tif");

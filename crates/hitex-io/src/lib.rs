@@ -7,8 +7,9 @@
 //! * NURBS models ([`models`]): STEP parts and assemblies ([`step`]), IGES
 //!   ([`iges`]), OBJ free-form ([`obj_freeform`]), hitex JSON ([`nurbs_json`]);
 //!   point sets to measure against them ([`points`]);
-//! * BTFs: the native `.hbtf` ([`btf_file`]) and measured image sets, PNG and
-//!   OpenEXR ([`btf_images`]);
+//! * BTFs: the native `.hbtf` ([`btf_file`]), the same compressed by local
+//!   PCA ([`btf_pca_file`]) and measured image sets, PNG and OpenEXR
+//!   ([`btf_images`]);
 //! * terrain: elevation models ([`dem`], several tiles as one: [`mosaic`]),
 //!   GeoTIFF rasters and their georeferencing, whole, by windows or by COG
 //!   overview ([`geotiff`]), coordinate
@@ -24,6 +25,7 @@
 
 pub mod btf_file;
 pub mod btf_images;
+pub mod btf_pca_file;
 pub mod crs;
 pub mod dem;
 pub mod fuzz;
@@ -71,6 +73,7 @@ pub fn binary_kind(head: &[u8]) -> Option<&'static str> {
         (b"\x1f\x8b", "a gzip archive"),
         (b"v/1\x01", "an OpenEXR image"),
         (b"HBTF", "an .hbtf BTF"),
+        (b"HPCA", "an .hbtf BTF compressed by local PCA"),
         (b"%PDF", "a PDF document"),
         (b"\x93NUMPY", "a NumPy array"),
     ];

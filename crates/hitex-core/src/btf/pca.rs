@@ -339,7 +339,143 @@ pub fn fit(btf: &Btf, opts: PcaOptions, progress: &(dyn Fn(usize, usize) + Sync)
     })
 }
 
+/// The stored parts of a [`LocalPca`], as a file holds them
+/// ([`LocalPca::from_parts`], [`LocalPca::to_parts`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PcaParts {
+    /// The angular grid.
+    pub grid: AngularGrid,
+    /// Sample width in texels.
+    pub width: u32,
+    /// Sample height in texels.
+    pub height: u32,
+    /// Clusters (1..=[`MAX_PCA_CLUSTERS`]).
+    pub clusters: u32,
+    /// Components per cluster (0..=[`MAX_PCA_COMPONENTS`]).
+    pub components: u32,
+    /// Each sample texel's cluster, row-major (`width × height`).
+    pub cluster: Vec<u16>,
+    /// Each sample texel's coefficients as half floats (`width × height × components`).
+    pub coefs: Vec<u16>,
+    /// The basis images as signed halves (see the module documentation):
+    /// `images × clusters × (components + 1) × 3`.
+    pub basis: Vec<u16>,
+    /// The source's display scale (1 for an 8-bit BTF).
+    pub ldr_scale: f32,
+    /// Whether the source was HDR.
+    pub hdr: bool,
+}
+
+impl PcaParts {
+    /// The number of halves the basis holds for this shape, or None past
+    /// 64 bits (shape and cluster limits not checked).
+    pub fn basis_len(&self) -> Option<u64> {
+        let d = self.grid.directions() as u64;
+        (d * d).checked_mul(u64::from(self.clusters))?.checked_mul(u64::from(self.components) + 1)?.checked_mul(3)
+    }
+}
+
 impl LocalPca {
+    /// A compressed BTF from its stored parts, checked: the shape within
+    /// the BTF limits, clusters and components within theirs, every array
+    /// of the size the shape gives, every cluster id below the cluster
+    /// count, every half float finite, the display scale in (0, 1].
+    pub fn from_parts(p: PcaParts) -> Result<Self, CoreError> {
+        let bad = |m: String| CoreError::InvalidImage(m);
+        super::dataset::checked_size(&p.grid, p.width, p.height)?;
+        if p.clusters == 0 || p.clusters as usize > MAX_PCA_CLUSTERS {
+            return Err(bad(format!("{} clusters; 1..={MAX_PCA_CLUSTERS} are allowed", p.clusters)));
+        }
+        if p.components as usize > MAX_PCA_COMPONENTS {
+            return Err(bad(format!("{} components; 0..={MAX_PCA_COMPONENTS} are allowed", p.components)));
+        }
+        let n = p.width as usize * p.height as usize;
+        let k = p.components as usize;
+        if p.cluster.len() != n {
+            return Err(bad(format!("{} cluster ids for {}x{} texels", p.cluster.len(), p.width, p.height)));
+        }
+        if p.coefs.len() != n * k {
+            return Err(bad(format!(
+                "{} coefficients for {}x{} texels × {k} components",
+                p.coefs.len(),
+                p.width,
+                p.height
+            )));
+        }
+        if p.basis_len() != Some(p.basis.len() as u64) {
+            return Err(bad(format!(
+                "{} basis halves; {} images × {} clusters × {} basis images × RGB need {}",
+                p.basis.len(),
+                p.grid.directions() * p.grid.directions(),
+                p.clusters,
+                k + 1,
+                p.basis_len().map_or("more than 2^64".into(), |b| b.to_string())
+            )));
+        }
+        if let Some(t) = p.cluster.iter().position(|&c| u32::from(c) >= p.clusters) {
+            return Err(bad(format!(
+                "texel ({}, {}) is in cluster {} of {}",
+                t % p.width as usize,
+                t / p.width as usize,
+                p.cluster[t],
+                p.clusters
+            )));
+        }
+        let finite = |h: &u16| h & 0x7c00 != 0x7c00;
+        if let Some(i) = p.coefs.iter().position(|h| !finite(h)) {
+            return Err(bad(format!("coefficient {i} is {:#06x}: infinite or NaN", p.coefs[i])));
+        }
+        if let Some(i) = p.basis.iter().position(|h| !finite(h)) {
+            return Err(bad(format!("basis half {i} is {:#06x}: infinite or NaN", p.basis[i])));
+        }
+        if !(p.ldr_scale.is_finite() && p.ldr_scale > 0.0 && p.ldr_scale <= 1.0) {
+            return Err(bad(format!("display scale {} is outside (0, 1]", p.ldr_scale)));
+        }
+        Ok(LocalPca {
+            grid: p.grid,
+            width: p.width,
+            height: p.height,
+            clusters: p.clusters,
+            components: p.components,
+            cluster: p.cluster,
+            coefs: p.coefs,
+            basis: p.basis,
+            ldr_scale: p.ldr_scale,
+            hdr: p.hdr,
+        })
+    }
+
+    /// The stored parts (copies), for a writer.
+    pub fn to_parts(&self) -> PcaParts {
+        PcaParts {
+            grid: self.grid.clone(),
+            width: self.width,
+            height: self.height,
+            clusters: self.clusters,
+            components: self.components,
+            cluster: self.cluster.clone(),
+            coefs: self.coefs.clone(),
+            basis: self.basis.clone(),
+            ldr_scale: self.ldr_scale,
+            hdr: self.hdr,
+        }
+    }
+
+    /// Each sample texel's cluster, row-major.
+    pub fn cluster_ids(&self) -> &[u16] {
+        &self.cluster
+    }
+
+    /// Every sample texel's coefficient halves, row-major, `components` each.
+    pub fn coef_halves(&self) -> &[u16] {
+        &self.coefs
+    }
+
+    /// The source's display scale (1 for an 8-bit BTF).
+    pub fn ldr_scale(&self) -> f32 {
+        self.ldr_scale
+    }
+
     /// The angular grid.
     pub fn grid(&self) -> &AngularGrid {
         &self.grid
@@ -587,6 +723,32 @@ mod tests {
         let one = fit(&btf, PcaOptions { clusters: 1, components: 0 }, &|_, _| {}).unwrap().psnr(&btf).unwrap();
         let many = fit(&btf, PcaOptions { clusters: 8, components: 0 }, &|_, _| {}).unwrap().psnr(&btf).unwrap();
         assert!(many > one, "8 cluster means {many} dB against one mean {one} dB");
+    }
+
+    #[test]
+    fn stored_parts_rebuild_the_same_pca_and_bad_parts_are_refused() {
+        let btf = low_rank(4, 8);
+        let p = fit(&btf, PcaOptions { clusters: 3, components: 2 }, &|_, _| {}).unwrap();
+        assert_eq!(LocalPca::from_parts(p.to_parts()).unwrap(), p);
+        let refused = |f: &dyn Fn(&mut PcaParts), want: &str| {
+            let mut parts = p.to_parts();
+            f(&mut parts);
+            let e = LocalPca::from_parts(parts).unwrap_err().to_string();
+            assert!(e.contains(want), "{e}");
+        };
+        refused(&|q| q.clusters = 0, "0 clusters");
+        refused(&|q| q.clusters = MAX_PCA_CLUSTERS as u32 + 1, "clusters; 1..=1024");
+        refused(&|q| q.components = 16, "16 components");
+        refused(&|q| q.cluster.pop().map_or((), drop), "cluster ids for 8x8 texels");
+        refused(&|q| q.coefs.push(0), "coefficients for 8x8 texels × 2 components");
+        refused(&|q| q.basis.truncate(9), "basis halves");
+        // a different component count with the same arrays: the sizes no longer agree
+        refused(&|q| q.components = 1, "coefficients");
+        refused(&|q| q.cluster[9] = 3, "texel (1, 1) is in cluster 3 of 3");
+        refused(&|q| q.coefs[5] = 0x7c00, "coefficient 5 is 0x7c00");
+        refused(&|q| q.basis[2] = 0xfe00, "basis half 2 is 0xfe00");
+        refused(&|q| q.ldr_scale = 0.0, "display scale 0");
+        refused(&|q| q.width = 0, "8 texels");
     }
 
     #[test]

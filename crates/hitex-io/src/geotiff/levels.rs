@@ -276,7 +276,12 @@ pub fn load_for_view(path: &Path, cap: u64, how: Coarsening) -> Result<ViewLevel
             notes,
         }),
         Err(e) => {
-            notes.push(format!("overview {l} cannot be read ({e}); the full image is read instead"));
+            // the caller names the file
+            let why = match e {
+                IoError::Format { message, .. } => message,
+                other => other.to_string(),
+            };
+            notes.push(format!("overview {l} cannot be read ({why}); the full image is read instead"));
             Ok(ViewLevel { read: None, notes })
         }
     }
