@@ -167,6 +167,8 @@ enum Content {
 
 struct BtfView {
     btf: Btf,
+    /// The local PCA of a compressed file, drawn from its basis.
+    pca: Option<hitex_core::btf::pca::LocalPca>,
     map: hitex_core::btf::index::IndexMap,
     surface: BtfSurface,
     quad: bool,
@@ -276,15 +278,19 @@ fn open_btf(input: &str, mode: Option<&str>, aspect: f32) -> Result<Content, Cli
             CliError::Input(format!("--mode {m}: a BTF view takes a layout: a, b, c, c2, d, e, e2 or f"))
         })?,
     };
-    let btf = crate::btf_cmd::load_or_synth(input, true)?;
+    let (btf, pca) = crate::btf_cmd::load_or_synth_pca(input, true)?;
     let map = crate::btf_cmd::index_with_progress(&btf, 128, 1, 3, true)?;
     let surface = crate::btf_cmd::surface_for("sphere", 4.0)?;
     let camera = crate::btf_cmd::camera_for(&surface, false, aspect)?;
-    let mut prepared = PreparedBtf::new(&btf, layout, None, map.clone(), surface.clone())?;
+    let mut prepared = match &pca {
+        Some(p) => PreparedBtf::with_pca(p, layout, map.clone(), surface.clone())?,
+        None => PreparedBtf::new(&btf, layout, None, map.clone(), surface.clone())?,
+    };
     // an HDR BTF is shown through the tone map `btf render` uses by default
     prepared.tone_map = if btf.is_hdr() { ToneMap::Aces } else { ToneMap::None };
     Ok(Content::Btf(Box::new(BtfView {
         btf,
+        pca,
         map,
         surface,
         quad: false,
@@ -486,7 +492,16 @@ impl Content {
                         ui.selectable_value(&mut b.layout, l, l.label());
                     }
                 });
-                if b.btf.is_hdr() {
+                if let Some(p) = &b.pca {
+                    // the basis is half floats, which BC1 cannot hold
+                    b.bc1 = false;
+                    ui.label(format!(
+                        "local PCA {}×{} (1:{:.1}), drawn from the basis",
+                        p.clusters(),
+                        p.components(),
+                        p.ratio()
+                    ));
+                } else if b.btf.is_hdr() {
                     // BC1 holds 8-bit colours only
                     b.bc1 = false;
                     ui.label("HDR texels (half floats), ACES tone map");
@@ -496,12 +511,22 @@ impl Content {
                 if (layout, bc1) != (b.layout, b.bc1) {
                     let enc = b.bc1.then_some(Bc1Encoder::Ispc);
                     let tone = b.prepared.tone_map;
-                    b.prepared = PreparedBtf::new(&b.btf, b.layout, enc, b.map.clone(), b.surface.clone())?;
+                    b.prepared = match &b.pca {
+                        Some(p) => PreparedBtf::with_pca(p, b.layout, b.map.clone(), b.surface.clone())?,
+                        None => PreparedBtf::new(&b.btf, b.layout, enc, b.map.clone(), b.surface.clone())?,
+                    };
                     b.prepared.tone_map = tone;
                     changed = true;
                 }
                 changed |= light_sliders(ui, &mut b.light);
-                ui.label(format!("{} codebook reads + 4 index reads per pixel", b.layout.codebook_reads()));
+                let reads = b.layout.codebook_reads() as usize;
+                ui.label(match &b.pca {
+                    Some(p) => format!(
+                        "{} codebook reads per cluster among the 4 index texels + 4 index reads per pixel",
+                        reads * (p.components() as usize + 1) / 4
+                    ),
+                    None => format!("{reads} codebook reads + 4 index reads per pixel"),
+                });
                 ui.label(format!(
                     "{} images of {}x{} texels",
                     b.btf.grid().directions().pow(2),

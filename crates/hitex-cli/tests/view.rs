@@ -94,7 +94,17 @@ fn screenshots_equal_the_headless_renders() {
     std::fs::write(&scene, hitex_core::scene::SHOWCASE_TOML).unwrap();
     let scene = scene.to_str().unwrap();
     let shot = |name: &str| d.join(name).to_string_lossy().into_owned();
+    // a BTF compressed by local PCA: the view draws it from its basis, as `btf render` does
+    let (raw, pca) = (shot("w.hbtf"), shot("w-pca.hbtf"));
+    let o = hitex(&["btf", "synth", "woven", "-o", &raw, "--size", "8", "--theta", "0,30,60", "--phi", "6"]);
+    assert!(o.status.success(), "{o:?}");
+    assert!(hitex(&["btf", "compress", &raw, "--pca", "1,2", "-o", &pca]).status.success());
     let cases: Vec<(Vec<String>, Vec<String>, &str)> = vec![
+        (
+            vec![pca.clone(), "--backend".into(), "cpu".into()],
+            ["btf", "render", &pca, "--on", "sphere", "--repeats", "4", "--backend", "cpu"].map(String::from).to_vec(),
+            "btf-pca-cpu",
+        ),
         (
             vec![scene.into(), "--backend".into(), "cpu".into()],
             vec!["render".into(), scene.into(), "--backend".into(), "cpu".into()],
