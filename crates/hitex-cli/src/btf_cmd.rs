@@ -320,13 +320,28 @@ fn planar_uvs(mesh: &hitex_core::scene::Mesh) -> Result<hitex_core::scene::Mesh,
 /// the BTF then its reconstruction), or a material name synthesised with
 /// the paper's defaults.
 pub fn load_or_synth_pca(input: &str, quiet: bool) -> Result<(Btf, Option<LocalPca>), CliError> {
-    let path = Path::new(input);
-    if path.is_file() && hitex_io::btf_pca_file::read_pca_header(path).is_ok() {
-        let pca = hitex_io::btf_pca_file::read_pca_file(path)?;
-        let btf = hitex_io::btf_pca_file::decompressed(&pca, path)?;
-        return Ok((btf, Some(pca)));
+    match stored_pca(input)? {
+        Some(p) => Ok((hitex_io::btf_pca_file::decompressed(&p, Path::new(input))?, Some(p))),
+        None => Ok((load_or_synth(input, quiet)?, None)),
     }
-    Ok((load_or_synth(input, quiet)?, None))
+}
+
+/// The local PCA of `input` when it is a compressed `.hbtf` (by its first
+/// bytes; a damaged one is refused by name), None for anything else.
+pub fn stored_pca(input: &str) -> Result<Option<LocalPca>, CliError> {
+    use std::io::Read;
+    let path = Path::new(input);
+    let mut head = [0u8; 4];
+    let compressed = path.is_file()
+        && std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut head)).is_ok()
+        && hitex_io::btf_pca_file::is_pca_file(&head);
+    Ok(if compressed { Some(hitex_io::btf_pca_file::read_pca_file(path)?) } else { None })
+}
+
+/// A BTF to render: its texels, or the local PCA of a compressed file.
+enum Source {
+    Raw(Btf),
+    Pca(LocalPca),
 }
 
 /// A `.hbtf` path, or a material name synthesised with the paper's defaults.
@@ -372,7 +387,7 @@ pub fn save_index(map: &IndexMap, path: &Path) -> Result<(), CliError> {
 
 /// Reads an index map PNG written by [`save_index`] (8- or 16-bit), checking
 /// every entry against the sample size.
-pub fn load_index(path: &Path, btf: &Btf) -> Result<IndexMap, CliError> {
+pub fn load_index(path: &Path, sample: (u32, u32)) -> Result<IndexMap, CliError> {
     let img = image::ImageReader::open(path)
         .and_then(|r| r.with_guessed_format())
         .map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?
@@ -383,18 +398,18 @@ pub fn load_index(path: &Path, btf: &Btf) -> Result<IndexMap, CliError> {
     let mut entries = Vec::with_capacity((w * h) as usize);
     for (i, p) in img.pixels().enumerate() {
         // 8-bit files are widened ×257 by the decoder
-        let (u, v) = if img.as_raw().iter().all(|c| c % 257 == 0) && btf.width() <= 256 {
+        let (u, v) = if img.as_raw().iter().all(|c| c % 257 == 0) && sample.0 <= 256 {
             (p[0] / 257, p[1] / 257)
         } else {
             (p[0], p[1])
         };
-        if u as u32 >= btf.width() || v as u32 >= btf.height() {
+        if u as u32 >= sample.0 || v as u32 >= sample.1 {
             return Err(CliError::Input(format!(
                 "{}: texel {} names sample texel ({u}, {v}) outside the {}x{} sample",
                 path.display(),
                 i,
-                btf.width(),
-                btf.height()
+                sample.0,
+                sample.1
             )));
         }
         entries.push([u, v]);
@@ -755,12 +770,12 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             Ok(())
         }
         BtfCommand::Compress { input, output, pca } => {
-            let (btf, stored) = load_or_synth_pca(&input, false)?;
-            if stored.is_some() {
+            if stored_pca(&input)?.is_some() {
                 return Err(CliError::Input(format!(
                     "{input} is already compressed by local PCA: compress the BTF it was made from"
                 )));
             }
+            let btf = load_or_synth(&input, false)?;
             let (p, _) = pca_with_progress(&btf, pca, false)?;
             hitex_io::btf_pca_file::write_pca_file(&output, &p)?;
             let len = std::fs::metadata(&output).map(|m| m.len()).unwrap_or(0);
@@ -816,7 +831,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 )));
             }
             let layout = parse_layout(&layout)?;
-            let (btf, stored) = load_or_synth_pca(&input, false)?;
+            let stored = stored_pca(&input)?;
             if stored.is_some() && pca.is_some() {
                 return Err(CliError::Input(format!(
                     "{input} is already compressed by local PCA: drop --pca to render it as it is"
@@ -828,9 +843,22 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                     if bc1 { "--bc1" } else { "--mip on" }
                 )));
             }
-            let map = match index {
-                Some(p) => load_index(&p, &btf)?,
-                None => index_with_progress(&btf, 128, 1, 3, false)?,
+            // a compressed file is drawn from its basis: reconstructed only to grow an index map
+            let source = match stored {
+                Some(p) => Source::Pca(p),
+                None => Source::Raw(load_or_synth(&input, false)?),
+            };
+            let (sample, hdr) = match &source {
+                Source::Raw(b) => ((b.width(), b.height()), b.is_hdr()),
+                Source::Pca(p) => ((p.width(), p.height()), p.is_hdr()),
+            };
+            let map = match (index, &source) {
+                (Some(p), _) => load_index(&p, sample)?,
+                (None, Source::Raw(btf)) => index_with_progress(btf, 128, 1, 3, false)?,
+                (None, Source::Pca(p)) => {
+                    let btf = hitex_io::btf_pca_file::decompressed(p, Path::new(&input))?;
+                    index_with_progress(&btf, 128, 1, 3, false)?
+                }
             };
             let surface = surface_for(&on, repeats)?;
             let quad = on == "quad";
@@ -838,8 +866,8 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             let light = light_for(&surface, quad, light_azimuth, light_elevation);
             let t = Instant::now();
             let enc = bc1.then_some(Bc1Encoder::Ispc);
-            let with_mip = |surface: BtfSurface| -> Result<(PreparedBtf, String), CliError> {
-                let m = mip_with_progress(&btf, &map, false)?;
+            let with_mip = |btf: &Btf, surface: BtfSurface| -> Result<(PreparedBtf, String), CliError> {
+                let m = mip_with_progress(btf, &map, false)?;
                 let note = format!(
                     ", MIP {} levels ({} entries over the coarser levels; twice the reads where two levels blend)",
                     m.level_count(),
@@ -847,8 +875,8 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                 );
                 Ok((PreparedBtf::with_mip(&m, layout, enc, surface)?, note))
             };
-            let (mut prepared, mip_note) = match (stored.as_ref(), pca, mip) {
-                (Some(p), _, _) => {
+            let (mut prepared, mip_note) = match (&source, pca, mip) {
+                (Source::Pca(p), _, _) => {
                     let note = format!(
                         ", local PCA {}x{} read from the file (1:{:.1}; {} basis images read per cluster), without MIP",
                         p.clusters(),
@@ -858,8 +886,8 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                     );
                     (PreparedBtf::with_pca(p, layout, map.clone(), surface)?, note)
                 }
-                (None, Some(opts), _) => {
-                    let (pca, psnr) = pca_with_progress(&btf, opts, false)?;
+                (Source::Raw(btf), Some(opts), _) => {
+                    let (pca, psnr) = pca_with_progress(btf, opts, false)?;
                     let note = format!(
                         ", local PCA {}x{} (1:{:.1}, {psnr:.1} dB; {} basis images read per cluster), without MIP",
                         opts.clusters,
@@ -869,16 +897,16 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
                     );
                     (PreparedBtf::with_pca(&pca, layout, map.clone(), surface)?, note)
                 }
-                (None, None, MipArg::Off) => {
-                    (PreparedBtf::new(&btf, layout, enc, map.clone(), surface)?, String::new())
+                (Source::Raw(btf), None, MipArg::Off) => {
+                    (PreparedBtf::new(btf, layout, enc, map.clone(), surface)?, String::new())
                 }
-                (None, None, MipArg::On) => with_mip(surface)?,
-                (None, None, MipArg::Auto) => match with_mip(surface.clone()) {
+                (Source::Raw(btf), None, MipArg::On) => with_mip(btf, surface)?,
+                (Source::Raw(btf), None, MipArg::Auto) => match with_mip(btf, surface.clone()) {
                     Ok(p) => p,
                     // a pyramid that does not fit; anything else is an error
                     Err(CliError::Input(e)) => {
                         eprintln!("hitex: rendering without MIP mapping ({e}); --mip off says so quietly");
-                        (PreparedBtf::new(&btf, layout, enc, map.clone(), surface)?, ", without MIP".into())
+                        (PreparedBtf::new(btf, layout, enc, map.clone(), surface)?, ", without MIP".into())
                     }
                     Err(e) => return Err(e),
                 },
@@ -886,7 +914,7 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             let prep_ms = t.elapsed().as_secs_f64() * 1e3;
             prepared.exposure = exposure.exp2();
             prepared.tone_map = match tone_map {
-                ToneMapArg::Auto if btf.is_hdr() => ToneMap::Aces,
+                ToneMapArg::Auto if hdr => ToneMap::Aces,
                 ToneMapArg::Auto | ToneMapArg::None => ToneMap::None,
                 ToneMapArg::Reinhard => ToneMap::Reinhard,
                 ToneMapArg::Aces => ToneMap::Aces,
@@ -896,17 +924,20 @@ pub fn run(cmd: BtfCommand) -> Result<(), CliError> {
             let frame = render_frame(&mut r, &Job::Btf { surface: &prepared, camera, light }, size)?;
             let ms = t.elapsed().as_secs_f64() * 1e3;
             save(&frame, &output)?;
-            let tone = if btf.is_hdr() || exposure != 0.0 || prepared.tone_map != ToneMap::None {
+            let tone = if hdr || exposure != 0.0 || prepared.tone_map != ToneMap::None {
                 format!(
                     ", {} texels, exposure {exposure:+} stops, tone map {}",
-                    if btf.is_hdr() { "HDR half-float" } else { "8-bit" },
+                    if hdr { "HDR half-float" } else { "8-bit" },
                     prepared.tone_map.name()
                 )
             } else {
                 String::new()
             };
             // a PCA pixel reads its k + 1 basis images per cluster among its four index texels
-            let components = stored.as_ref().map(|p| p.components() as usize).or(pca.map(|o| o.components));
+            let components = match &source {
+                Source::Pca(p) => Some(p.components() as usize),
+                Source::Raw(_) => pca.map(|o| o.components),
+            };
             let reads = match components {
                 Some(k) => format!(
                     "{} codebook reads per pixel and cluster among its index texels",

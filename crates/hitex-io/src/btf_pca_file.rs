@@ -23,7 +23,7 @@
 //! | 44          | 4·θ count | `f32` polar angles in degrees                     |
 //! | 44 + 4·θ    | 8         | `u64` payload length in bytes                     |
 //! | 52 + 4·θ    | 4         | `u32` CRC-32 of the payload                       |
-//! | header      | 2·w·h     | `u16` each sample texel's cluster, row-major      |
+//! | header      | 2·w·h     | `u16` each sample texel's cluster, row-major (absent with one cluster) |
 //! |             | 2·w·h·k   | `u16` half-float coefficients, k per texel        |
 //! |             | 2·3·i·c·(k+1) | `u16` half-float basis images (i images)      |
 //!
@@ -92,14 +92,14 @@ pub struct HpcaHeader {
     pub crc32: u32,
 }
 
-/// The payload's three arrays' lengths in halves (ids, coefficients, basis)
-/// for a shape, or None past 64 bits.
+/// The payload's three arrays' lengths in halves (ids, none with one
+/// cluster; coefficients; basis) for a shape, or None past 64 bits.
 fn array_lens(grid: &AngularGrid, width: u32, height: u32, clusters: u32, components: u32) -> Option<[u64; 3]> {
     let n = u64::from(width) * u64::from(height);
     let k = u64::from(components);
     let d = grid.directions() as u64;
     let basis = (d * d).checked_mul(u64::from(clusters))?.checked_mul(k + 1)?.checked_mul(3)?;
-    Some([n, n.checked_mul(k)?, basis])
+    Some([if clusters > 1 { n } else { 0 }, n.checked_mul(k)?, basis])
 }
 
 /// The header's bytes for `p` and a payload CRC.
@@ -124,12 +124,11 @@ fn encode_header(p: &LocalPca, crc: u32, payload: u64) -> Vec<u8> {
     h
 }
 
-/// The payload: cluster ids, coefficients, basis, as little-endian halves.
+/// The payload: cluster ids (none with one cluster), coefficients, basis,
+/// as little-endian halves.
 fn payload(p: &LocalPca) -> Vec<u8> {
-    [p.cluster_ids(), p.coef_halves(), p.basis_halves()]
-        .iter()
-        .flat_map(|a| a.iter().flat_map(|h| h.to_le_bytes()))
-        .collect()
+    let ids: &[u16] = if p.clusters() > 1 { p.cluster_ids() } else { &[] };
+    [ids, p.coef_halves(), p.basis_halves()].iter().flat_map(|a| a.iter().flat_map(|h| h.to_le_bytes())).collect()
 }
 
 /// The whole file of `p`.
@@ -185,8 +184,15 @@ fn parse_header(bytes: &[u8], file_len: u64, path: &Path) -> Result<HpcaHeader, 
             "header length field is {header_bytes} bytes; {theta_count} polar angles make a {want}-byte header"
         )));
     }
-    if bytes.len() < want {
+    if bytes.len() < want || file_len < want as u64 {
         return Err(fmt(format!("the file of {file_len} bytes is shorter than its {want}-byte header")));
+    }
+    let hdr_source = flags & FLAG_HDR_SOURCE != 0;
+    if !(ldr_scale.is_finite() && ldr_scale > 0.0 && ldr_scale <= 1.0) || (!hdr_source && ldr_scale != 1.0) {
+        return Err(fmt(format!(
+            "display scale {ldr_scale} is not {}",
+            if hdr_source { "in (0, 1]" } else { "1, as an 8-bit source's is" }
+        )));
     }
     let theta: Vec<f32> = bytes[FIXED_HEADER..want - HEADER_TAIL]
         .chunks_exact(4)
@@ -232,7 +238,7 @@ fn parse_header(bytes: &[u8], file_len: u64, path: &Path) -> Result<HpcaHeader, 
         width,
         height,
         grid,
-        hdr_source: flags & FLAG_HDR_SOURCE != 0,
+        hdr_source,
         clusters,
         components,
         ldr_scale,
@@ -256,7 +262,8 @@ fn assemble(h: HpcaHeader, body: &[u8], path: &Path) -> Result<LocalPca, IoError
     let halves = |from: usize, n: u64| -> Vec<u16> {
         body[from..from + 2 * n as usize].chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect()
     };
-    let cluster = halves(0, lens[0]);
+    // one cluster: every texel's id is 0, and the file holds none
+    let cluster = if h.clusters > 1 { halves(0, lens[0]) } else { vec![0; h.width as usize * h.height as usize] };
     let coefs = halves(2 * lens[0] as usize, lens[1]);
     let basis = halves(2 * (lens[0] + lens[1]) as usize, lens[2]);
     LocalPca::from_parts(PcaParts {
@@ -316,13 +323,26 @@ pub fn read_pca_file(path: &Path) -> Result<LocalPca, IoError> {
     assemble(h, &bytes[start..], path)
 }
 
-/// The BTF a compressed one stands for ([`LocalPca::decompress`]), its
-/// size checked against the memory cap first (the reconstruction is far
-/// larger than the file: linear f32 RGB, then the texels).
-pub fn decompressed(p: &LocalPca, path: &Path) -> Result<Btf, IoError> {
+/// Bytes [`LocalPca::decompress`] holds at its peak per texel: the linear
+/// f32 RGB it reconstructs, then the texels made of it (8-bit RGB; or half
+/// floats and their 8-bit display copy for an HDR source).
+fn reconstruction_bytes_per_texel(hdr: bool) -> u64 {
+    12 + if hdr { 6 + 3 } else { 3 }
+}
+
+/// Bytes the reconstruction of `p` holds at its peak.
+pub fn reconstruction_bytes(p: &LocalPca) -> u64 {
     let d = p.grid().directions() as u64;
     let texels = d * d * u64::from(p.width()) * u64::from(p.height());
-    crate::limits::check_cap("the BTF reconstructed from its local PCA", texels.checked_mul(3 * 4 + 3 * 2))
+    texels.saturating_mul(reconstruction_bytes_per_texel(p.is_hdr()))
+}
+
+/// The BTF a compressed one stands for ([`LocalPca::decompress`]), its
+/// peak size checked against the memory cap first. The reconstruction is
+/// not bounded by the file's length: compression by local PCA legitimately
+/// reaches 1:1000 of the raw texels and more, so only the cap bounds it.
+pub fn decompressed(p: &LocalPca, path: &Path) -> Result<Btf, IoError> {
+    crate::limits::check_cap("the BTF reconstructed from its local PCA", Some(reconstruction_bytes(p)))
         .map_err(|e| IoError::Format { path: path.to_path_buf(), message: e.to_string() })?;
     p.decompress().map_err(|e| IoError::from(e).in_file(path))
 }
@@ -355,6 +375,20 @@ mod tests {
         // every reader of .hbtf takes it, as its reconstruction
         assert_eq!(crate::btf_file::read_hbtf(&path).unwrap(), p.decompress().unwrap());
         assert_eq!(crate::btf_file::hbtf_from_bytes(&bytes, "k.hbtf").unwrap(), p.decompress().unwrap());
+    }
+
+    #[test]
+    fn an_hdr_source_keeps_its_flag_and_display_scale() {
+        let grid = AngularGrid::new(vec![0.0, 45.0], 4).unwrap();
+        let d = grid.directions();
+        // values up to 40: a display scale below 1
+        let linear: Vec<f32> = (0..d * d * 4 * 3).map(|i| 0.01 + (i % 97) as f32 * 0.4).collect();
+        let btf = Btf::from_linear(grid, 2, 2, &linear).unwrap();
+        let p = fit(&btf, PcaOptions { clusters: 2, components: 1 }, &|_, _| {}).unwrap();
+        assert!(p.is_hdr() && p.ldr_scale() < 1.0);
+        let back = pca_from_bytes(&pca_file_bytes(&p), "hdr.hbtf").unwrap();
+        assert_eq!(back, p);
+        assert!(decompressed(&back, Path::new("hdr.hbtf")).unwrap().is_hdr());
     }
 
     #[test]
@@ -404,7 +438,9 @@ mod tests {
             },
             "infinite or NaN",
         );
-        refused(&|b| put(b, 40, 0f32.to_bits()), "display scale 0");
+        refused(&|b| put(b, 40, 0f32.to_bits()), "display scale 0 is not 1");
+        refused(&|b| put(b, 40, f32::NAN.to_bits()), "display scale NaN");
+        refused(&|b| put(b, 40, 0.5f32.to_bits()), "as an 8-bit source's is");
         assert!(pca_from_bytes(b"HBTF", "x.hbtf").unwrap_err().to_string().contains("starts with \"HPCA\""));
     }
 }

@@ -114,6 +114,20 @@ impl Target {
     }
 }
 
+/// A compressed BTF read, then reconstructed when the reconstruction is
+/// small: its size is bounded only by the memory cap (see
+/// [`crate::btf_pca_file::decompressed`]), which the fuzzer's own memory
+/// limit is below.
+fn hbtf_pca(data: &[u8]) -> bool {
+    match crate::btf_pca_file::pca_from_bytes(data, "fuzz.hbtf") {
+        Ok(p) if crate::btf_pca_file::reconstruction_bytes(&p) <= 64 << 20 => {
+            crate::btf_pca_file::decompressed(&p, Path::new("fuzz.hbtf")).is_ok()
+        }
+        Ok(_) => true,
+        Err(_) => false,
+    }
+}
+
 /// Runs one input through `target`. Returns whether the reader accepted it
 /// (for corpus statistics); a panic is the only failure.
 pub fn run(target: Target, data: &[u8]) -> bool {
@@ -126,11 +140,9 @@ pub fn run(target: Target, data: &[u8]) -> bool {
             Ok(d) => d.resolve(&hitex_core::scene::NoFiles).is_ok(),
             Err(_) => false,
         },
+        Target::Hbtf if crate::btf_pca_file::is_pca_file(data) => hbtf_pca(data),
         Target::Hbtf => crate::btf_file::hbtf_from_bytes(data, "fuzz.hbtf").is_ok(),
-        Target::HbtfPca => match crate::btf_pca_file::pca_from_bytes(data, "fuzz.hbtf") {
-            Ok(p) => crate::btf_pca_file::decompressed(&p, Path::new("fuzz.hbtf")).is_ok(),
-            Err(_) => false,
-        },
+        Target::HbtfPca => hbtf_pca(data),
         Target::BtfNames => btf_names(data),
         Target::Geotiff => {
             let path = Path::new("fuzz.tif");

@@ -428,8 +428,12 @@ impl LocalPca {
         if let Some(i) = p.basis.iter().position(|h| !finite(h)) {
             return Err(bad(format!("basis half {i} is {:#06x}: infinite or NaN", p.basis[i])));
         }
-        if !(p.ldr_scale.is_finite() && p.ldr_scale > 0.0 && p.ldr_scale <= 1.0) {
-            return Err(bad(format!("display scale {} is outside (0, 1]", p.ldr_scale)));
+        if !(p.ldr_scale.is_finite() && p.ldr_scale > 0.0 && p.ldr_scale <= 1.0) || (!p.hdr && p.ldr_scale != 1.0) {
+            return Err(bad(format!(
+                "display scale {} is not {}",
+                p.ldr_scale,
+                if p.hdr { "in (0, 1]" } else { "1, as an 8-bit source's is" }
+            )));
         }
         Ok(LocalPca {
             grid: p.grid,
@@ -748,6 +752,7 @@ mod tests {
         refused(&|q| q.coefs[5] = 0x7c00, "coefficient 5 is 0x7c00");
         refused(&|q| q.basis[2] = 0xfe00, "basis half 2 is 0xfe00");
         refused(&|q| q.ldr_scale = 0.0, "display scale 0");
+        refused(&|q| q.ldr_scale = 0.5, "as an 8-bit source's is");
         refused(&|q| q.width = 0, "8 texels");
     }
 

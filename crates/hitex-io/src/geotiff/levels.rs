@@ -279,6 +279,7 @@ pub fn load_for_view(path: &Path, cap: u64, how: Coarsening) -> Result<ViewLevel
             // the caller names the file
             let why = match e {
                 IoError::Format { message, .. } => message,
+                IoError::Read { source, .. } => source.to_string(),
                 other => other.to_string(),
             };
             notes.push(format!("overview {l} cannot be read ({why}); the full image is read instead"));
