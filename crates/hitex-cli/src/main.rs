@@ -160,6 +160,17 @@ pub enum CliError {
     Unavailable(String),
 }
 
+impl std::fmt::Display for CliError {
+    /// The message alone, as the error line says it.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CliError::Input(m) | CliError::Internal(m) | CliError::Check(m) | CliError::Unavailable(m) => {
+                f.write_str(m)
+            }
+        }
+    }
+}
+
 impl From<hitex_io::IoError> for CliError {
     fn from(e: hitex_io::IoError) -> Self {
         match e {
@@ -186,11 +197,7 @@ impl From<RenderError> for CliError {
 /// to stderr. `HITEX_GPU_FAULT=device-lost` destroys the GPU device right
 /// after it opens, as a driver reset would (for testing the fallback paths).
 pub fn open_renderer(choice: BackendChoice) -> Result<AnyRenderer, CliError> {
-    let options = OpenOptions {
-        software_for_auto: std::env::var_os("HITEX_SOFTWARE_GPU").is_some(),
-        lose_device: std::env::var("HITEX_GPU_FAULT").is_ok_and(|f| f == "device-lost"),
-    };
-    let mut r = AnyRenderer::open_with(choice, options).map_err(|e| match e {
+    let mut r = AnyRenderer::open_with(choice, open_options()).map_err(|e| match e {
         hitex_render::GpuError::NoAdapter => {
             CliError::Input(format!("--backend gpu: {e}; --backend cpu or auto render without one"))
         }
@@ -198,6 +205,16 @@ pub fn open_renderer(choice: BackendChoice) -> Result<AnyRenderer, CliError> {
     })?;
     r.on_notice(|n| eprintln!("hitex: {n}"));
     Ok(r)
+}
+
+/// How renderers open: `HITEX_SOFTWARE_GPU` lets `auto` take a software
+/// adapter, `HITEX_GPU_FAULT=device-lost` loses the device at once (for
+/// testing the fallbacks).
+pub fn open_options() -> OpenOptions {
+    OpenOptions {
+        software_for_auto: std::env::var_os("HITEX_SOFTWARE_GPU").is_some(),
+        lose_device: std::env::var("HITEX_GPU_FAULT").is_ok_and(|f| f == "device-lost"),
+    }
 }
 
 /// Renders `job` and returns its image.

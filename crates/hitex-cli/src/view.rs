@@ -9,7 +9,7 @@
 
 use crate::{Backend, CliError, open_renderer, parse_size, render_frame, save};
 use clap::Args;
-use eframe::egui;
+use eframe::{egui, egui_wgpu, wgpu};
 use glam::{DVec2, Vec3};
 use hitex_core::btf::{Btf, Layout};
 use hitex_core::residency::ResidentMaps;
@@ -313,24 +313,45 @@ impl Content {
         }
     }
 
-    /// Renders the current view at `w`×`h`.
-    fn render(&mut self, r: &mut AnyRenderer, w: u32, h: u32) -> Result<Frame, CliError> {
+    /// Whether the view is drawn by the renderer alone (so that the GPU can
+    /// draw it into the window's texture): not the CPU bank model's ground,
+    /// nor a NURBS mode whose legend is drawn onto the image.
+    fn drawn_by_the_renderer(&self) -> bool {
         match self {
-            Content::Scene { prepared, orbit, .. } => {
-                Ok(render_frame(r, &Job::Scene { scene: prepared, camera: orbit.camera() }, (w, h))?)
+            Content::Nurbs { prepared, .. } => !crate::nurbs_cmd::has_legend(prepared.mode),
+            Content::Ground { .. } => false,
+            _ => true,
+        }
+    }
+
+    /// Renders the current view at `w`×`h`: into `into` (a texture on the
+    /// GPU renderer's device, `w`×`h`) when given and the GPU draws it, else
+    /// as an image.
+    fn render(&mut self, r: &mut AnyRenderer, w: u32, h: u32, into: Option<&wgpu::Texture>) -> Result<Shown, CliError> {
+        let into = into.filter(|_| self.drawn_by_the_renderer());
+        let run = |r: &mut AnyRenderer, job: &Job<'_>| -> Result<Shown, CliError> {
+            match into {
+                Some(t) => Ok(r.render_into(job, t)?.map_or(Shown::InTexture, |out| Shown::Image(out.frame))),
+                None => Ok(Shown::Image(render_frame(r, job, (w, h))?)),
             }
+        };
+        match self {
+            Content::Scene { prepared, orbit, .. } => run(r, &Job::Scene { scene: prepared, camera: orbit.camera() }),
             Content::Nurbs { prepared, orbit, light, light_moved } => {
                 // the model's own light (as the headless render has it) until the sliders move
                 if *light_moved {
                     prepared.light = Some(light_dir(light[0], light[1]));
                 }
-                let mut f = render_frame(r, &Job::Nurbs { model: prepared, camera: orbit.camera() }, (w, h))?;
-                crate::nurbs_cmd::mode_legend(&mut f, prepared, false);
-                Ok(f)
+                let job = Job::Nurbs { model: prepared, camera: orbit.camera() };
+                let mut shown = run(r, &job)?;
+                if let Shown::Image(f) = &mut shown {
+                    crate::nurbs_cmd::mode_legend(f, prepared, false);
+                }
+                Ok(shown)
             }
             Content::Btf(b) => {
                 let light = crate::btf_cmd::light_for(&b.surface, b.quad, b.light[0], b.light[1]);
-                Ok(render_frame(r, &Job::Btf { surface: &b.prepared, camera: b.orbit.camera(), light }, (w, h))?)
+                run(r, &Job::Btf { surface: &b.prepared, camera: b.orbit.camera(), light })
             }
             Content::Store { meta, cache, flight, fov, per_side, stats } => {
                 let key = hitex_core::terrain::path::PathKey {
@@ -373,7 +394,7 @@ impl Content {
                     ground: hitex_render::terrain::FlyGround::Flat,
                     stats: false,
                 };
-                Ok(render_frame(r, &job, (w, h))?)
+                run(r, &job)
             }
             Content::Ground { pyr, wrap, flight, mode, banks } => {
                 let view = FlightView {
@@ -388,7 +409,7 @@ impl Content {
                 let (scheme, filter) = match mode {
                     FlySampler::Trilinear => {
                         banks.clear();
-                        return Ok(render_trilinear(pyr, &view, *wrap));
+                        return Ok(Shown::Image(render_trilinear(pyr, &view, *wrap)));
                     }
                     FlySampler::Span3 => (SpanScheme::Banks3x3, SpanFilter::Bilinear),
                     FlySampler::Span4 => (SpanScheme::Banks4x4, SpanFilter::Bilinear),
@@ -404,7 +425,7 @@ impl Content {
                     model.conflicts,
                     model.mean_level()
                 );
-                Ok(f)
+                Ok(Shown::Image(f))
             }
         }
     }
@@ -584,11 +605,69 @@ fn flight_label(ui: &mut egui::Ui, f: &Flight) {
     ui.label("W/S A/D fly, Q/E down/up, arrows or drag turn and tilt, wheel altitude");
 }
 
+/// What a render gave the window.
+enum Shown {
+    /// An image to upload (the CPU's, or a GPU's read back).
+    Image(Frame),
+    /// The view drawn into the window's texture on the GPU ([`GpuView`]).
+    InTexture,
+}
+
+/// The view drawn on the window's own GPU device: a texture of the view's
+/// size that the renderer draws into and egui shows as it is, with no
+/// read-back and no upload.
+struct GpuView {
+    state: egui_wgpu::RenderState,
+    texture: Option<(wgpu::Texture, egui::TextureId)>,
+}
+
+impl GpuView {
+    /// The texture for a `w`×`h` view (made, or remade at a new size, and
+    /// registered with egui).
+    fn texture_for(&mut self, w: u32, h: u32) -> &wgpu::Texture {
+        let fits = self.texture.as_ref().is_some_and(|(t, _)| (t.width(), t.height()) == (w, h));
+        if !fits {
+            let device = &self.state.device;
+            let t = device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("hitex view"),
+                size: wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba8Unorm,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            });
+            let view = t.create_view(&Default::default());
+            let mut egui_renderer = self.state.renderer.write();
+            let id = match self.texture.take() {
+                Some((_, id)) => {
+                    egui_renderer.update_egui_texture_from_wgpu_texture(device, &view, wgpu::FilterMode::Nearest, id);
+                    id
+                }
+                None => egui_renderer.register_native_texture(device, &view, wgpu::FilterMode::Nearest),
+            };
+            self.texture = Some((t, id));
+        }
+        match &self.texture {
+            Some((t, _)) => t,
+            None => unreachable!("made above"),
+        }
+    }
+}
+
 struct ViewApp {
     content: Content,
     renderer: AnyRenderer,
+    /// The window's device, when the GPU renderer draws on it.
+    gpu: Option<GpuView>,
+    /// The texture shown: egui's copy of an image, or the GPU's own.
+    shown: Option<egui::TextureId>,
+    /// The size of the view last drawn.
+    drawn: Option<(u32, u32)>,
     size: Option<(u32, u32)>,
     texture: Option<egui::TextureHandle>,
+    /// The last image (none when the GPU drew into its texture).
     last: Option<Frame>,
     dirty: bool,
     frame_ms: f64,
@@ -602,6 +681,19 @@ struct ViewApp {
 
 impl ViewApp {
     fn shoot(&mut self, path: &Path) {
+        // a view drawn on the GPU is read back for its screenshot
+        if self.last.is_none()
+            && let Some((w, h)) = self.drawn
+        {
+            match self.content.render(&mut self.renderer, w, h, None) {
+                Ok(Shown::Image(f)) => self.last = Some(f),
+                Ok(Shown::InTexture) => {}
+                Err(e) => {
+                    self.status = format!("screenshot failed: {e}");
+                    return;
+                }
+            }
+        }
         self.status = match &self.last {
             Some(f) => match save(f, path) {
                 Ok(()) => format!("wrote {} ({}x{})", path.display(), f.width, f.height),
@@ -633,7 +725,13 @@ impl eframe::App for ViewApp {
                 _ => self.renderer.name(),
             };
             ui.label(format!("backend: {backend}"));
-            ui.label(format!("frame: {:.1} ms ({} rendered)", self.frame_ms, self.frames));
+            if self.drawn.is_some() && self.last.is_none() {
+                // render_into returns once the frame is submitted; the window shows it when drawn
+                ui.label(format!("frame: {:.1} ms to submit ({} rendered)", self.frame_ms, self.frames));
+                ui.label("drawn into the window's texture on the GPU, no read-back");
+            } else {
+                ui.label(format!("frame: {:.1} ms ({} rendered)", self.frame_ms, self.frames));
+            }
             ui.separator();
             controls_changed = self.content.controls(ui);
             ui.separator();
@@ -654,29 +752,55 @@ impl eframe::App for ViewApp {
                 ((avail.x * ppp) as u32).clamp(16, hitex_core::scene::desc::MAX_OUTPUT_SIDE),
                 ((avail.y * ppp) as u32).clamp(16, hitex_core::scene::desc::MAX_OUTPUT_SIDE),
             ));
-            let stale = self.last.as_ref().is_none_or(|f| (f.width, f.height) != (w, h));
+            let stale = self.drawn != Some((w, h));
             let scripted = self.screenshot.is_some() || self.window_screenshot.is_some();
             if self.dirty || stale || self.content.settling() || scripted {
                 let t = Instant::now();
-                match self.content.render(&mut self.renderer, w, h) {
-                    Ok(f) => {
+                let into = match (&mut self.gpu, self.renderer.is_gpu()) {
+                    (Some(g), true) => Some(g.texture_for(w, h)),
+                    _ => None,
+                };
+                match self.content.render(&mut self.renderer, w, h, into) {
+                    Ok(shown) => {
                         self.frame_ms = t.elapsed().as_secs_f64() * 1e3;
                         self.frames += 1;
-                        let img = egui::ColorImage::from_rgba_unmultiplied([w as usize, h as usize], &f.rgba);
-                        match &mut self.texture {
-                            Some(tex) => tex.set(img, egui::TextureOptions::NEAREST),
-                            None => self.texture = Some(ctx.load_texture("view", img, egui::TextureOptions::NEAREST)),
-                        }
-                        self.last = Some(f);
+                        self.drawn = Some((w, h));
                         self.dirty = false;
+                        match shown {
+                            Shown::Image(f) => {
+                                let img = egui::ColorImage::from_rgba_unmultiplied([w as usize, h as usize], &f.rgba);
+                                let tex = match &mut self.texture {
+                                    Some(tex) => {
+                                        tex.set(img, egui::TextureOptions::NEAREST);
+                                        tex
+                                    }
+                                    None => self.texture.insert(ctx.load_texture(
+                                        "view",
+                                        img,
+                                        egui::TextureOptions::NEAREST,
+                                    )),
+                                };
+                                self.shown = Some(tex.id());
+                                self.last = Some(f);
+                            }
+                            Shown::InTexture => {
+                                if self.frames == 1 {
+                                    say!("view: drawn into the window's texture on the GPU, no read-back");
+                                }
+                                self.shown = self.gpu.as_ref().and_then(|g| g.texture.as_ref().map(|(_, id)| *id));
+                                self.last = None;
+                            }
+                        }
                     }
                     Err(e) => return self.fail(&ctx, e),
                 }
             }
-            if let Some(tex) = &self.texture {
+            if let Some(id) = self.shown {
                 let shown = egui::vec2(w as f32 / ppp, h as f32 / ppp);
                 let fit = (avail.x / shown.x).min(avail.y / shown.y).min(1.0);
-                let img = egui::Image::new(tex).fit_to_exact_size(shown * fit).sense(egui::Sense::click_and_drag());
+                let tex = egui::load::SizedTexture::new(id, shown);
+                let img =
+                    egui::Image::from_texture(tex).fit_to_exact_size(shown * fit).sense(egui::Sense::click_and_drag());
                 let resp = ui.add(img);
                 let moved = ctx.input(|i| self.content.interact(&resp, i, h as f32));
                 self.dirty |= moved;
@@ -754,11 +878,15 @@ pub fn run(a: ViewArgs) -> Result<(), CliError> {
     if std::env::var_os("DISPLAY").is_none_or(|d| d.is_empty()) {
         return Err(no_window("no display: DISPLAY is not set (hitex view opens an X11 window)"));
     }
-    let renderer = open_renderer(a.backend)?;
+    // the CPU renderer opens now; a GPU one on the window's own device once it is open
+    let renderer = open_renderer(Backend::Cpu)?;
     let failure = std::sync::Arc::new(std::sync::Mutex::new(None));
-    let app = ViewApp {
+    let mut app = ViewApp {
         content,
         renderer,
+        gpu: None,
+        shown: None,
+        drawn: None,
         size: a.size,
         texture: None,
         last: None,
@@ -771,20 +899,61 @@ pub fn run(a: ViewArgs) -> Result<(), CliError> {
         status: String::new(),
         failure: failure.clone(),
     };
+    // the window's device asks for what hitex draws with (BC layouts, float filtering, the adapter's limits)
+    let mut setup = egui_wgpu::WgpuSetupCreateNew::without_display_handle();
+    setup.device_descriptor = std::sync::Arc::new(hitex_render::gpu::device::device_descriptor);
+    let wgpu_options =
+        egui_wgpu::WgpuConfiguration { wgpu_setup: egui_wgpu::WgpuSetup::CreateNew(setup), ..Default::default() };
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title(format!("hitex view {}", a.input))
             .with_inner_size([a.window.0 as f32, a.window.1 as f32]),
+        wgpu_options,
         ..Default::default()
     };
-    eframe::run_native("hitex", options, Box::new(move |_cc| Ok(Box::new(app)))).map_err(|e| {
+    let backend = a.backend;
+    let opened = failure.clone();
+    let run = eframe::run_native(
+        "hitex",
+        options,
+        Box::new(move |cc| {
+            if backend != Backend::Cpu {
+                // the GPU renderer on the window's device, drawing into a texture egui shows;
+                // without the window's device, one of its own (read back)
+                let renderer = match cc.wgpu_render_state.as_ref() {
+                    Some(rs) => {
+                        let (ad, dev, q) = (rs.adapter.clone(), rs.device.clone(), rs.queue.clone());
+                        let r = AnyRenderer::on_device(backend, crate::open_options(), ad, dev, q)
+                            .map_err(|e| CliError::Internal(e.to_string()));
+                        app.gpu = Some(GpuView { state: rs.clone(), texture: None });
+                        r.map(|mut r| {
+                            r.on_notice(|n| eprintln!("hitex: {n}"));
+                            r
+                        })
+                    }
+                    None => open_renderer(backend),
+                };
+                match renderer {
+                    Ok(r) => app.renderer = r,
+                    Err(e) => {
+                        let msg = e.to_string();
+                        if let Ok(mut f) = opened.lock() {
+                            f.get_or_insert(e);
+                        }
+                        return Err(msg.into());
+                    }
+                }
+            }
+            Ok(Box::new(app))
+        }),
+    );
+    if let Some(e) = failure.lock().ok().and_then(|mut f| f.take()) {
+        return Err(e);
+    }
+    run.map_err(|e| {
         no_window(&format!(
             "cannot open a window ({e}): it needs X11 and a wgpu adapter (a GPU, or Mesa's lavapipe: \
                  apt-get install mesa-vulkan-drivers libvulkan1)"
         ))
-    })?;
-    if let Some(e) = failure.lock().ok().and_then(|mut f| f.take()) {
-        return Err(e);
-    }
-    Ok(())
+    })
 }

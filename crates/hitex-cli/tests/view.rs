@@ -128,6 +128,17 @@ fn screenshots_equal_the_headless_renders() {
             vec!["render".into(), scene.into(), "--backend".into(), "auto".into()],
             "scene-auto",
         ),
+        // the GPU draws on the window's own device, into the texture the window shows
+        (
+            vec![scene.into(), "--backend".into(), "gpu".into()],
+            vec!["render".into(), scene.into(), "--backend".into(), "gpu".into()],
+            "scene-gpu",
+        ),
+        (
+            vec!["surface".into(), "--mode".into(), "isophote".into(), "--backend".into(), "gpu".into()],
+            ["nurbs", "render", "surface", "--mode", "isophote", "--backend", "gpu"].map(String::from).to_vec(),
+            "nurbs-gpu",
+        ),
     ];
     for (view_args, render_args, name) in cases {
         let png = shot(&format!("{name}-view.png"));
@@ -140,7 +151,13 @@ fn screenshots_equal_the_headless_renders() {
             String::from_utf8_lossy(&o.stdout),
             String::from_utf8_lossy(&o.stderr)
         );
-        assert!(String::from_utf8_lossy(&o.stdout).contains("wrote"), "{name}: {o:?}");
+        let said = String::from_utf8_lossy(&o.stdout);
+        assert!(said.contains("wrote"), "{name}: {o:?}");
+        let in_texture = said.contains("drawn into the window's texture on the GPU");
+        // (auto draws in place on a hardware GPU, on the CPU otherwise)
+        if !name.ends_with("auto") {
+            assert_eq!(in_texture, name.ends_with("gpu"), "{name}: {said}");
+        }
         let reference = shot(&format!("{name}-render.png"));
         let mut r: Vec<&str> = render_args.iter().map(String::as_str).collect();
         r.extend(["--size", "160x120", "-o", &reference]);

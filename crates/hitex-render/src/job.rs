@@ -264,6 +264,70 @@ impl AnyRenderer {
         Ok(r)
     }
 
+    /// The renderer `choice` names on an application's own device (see
+    /// [`GpuRenderer::on_device`]): `Cpu` the CPU backend; `Gpu` the device;
+    /// `Auto` the device if it is a hardware GPU (or a software one with
+    /// [`OpenOptions::software_for_auto`]), else the CPU backend, said in the
+    /// name, and under `auto` the CPU taking over when the GPU fails, as
+    /// [`AnyRenderer::open_with`] does.
+    pub fn on_device(
+        choice: BackendChoice,
+        options: OpenOptions,
+        adapter: wgpu::Adapter,
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+    ) -> Result<Self, GpuError> {
+        let mut r =
+            Self { engine: Engine::Cpu(CpuRenderer::new()), auto: false, why_cpu: None, notices: vec![], sink: None };
+        let software = !crate::gpu::device::is_hardware(&adapter.get_info());
+        match choice {
+            BackendChoice::Cpu => {}
+            BackendChoice::Auto if software && !options.software_for_auto => {
+                r.auto = true;
+                r.why_cpu = Some("auto: no hardware GPU, and the software one is slower".into());
+            }
+            _ => {
+                r.auto = choice == BackendChoice::Auto;
+                let g = GpuRenderer::on_device(adapter, device, queue)?;
+                if options.lose_device {
+                    g.context().lose_device();
+                }
+                r.engine = Engine::Gpu(Box::new(g));
+            }
+        }
+        Ok(r)
+    }
+
+    /// Renders `job` into `target`, a texture on the device of the GPU in use
+    /// ([`GpuRenderer::render_into`]): `Ok(None)` when drawn there, with no
+    /// read-back. On the CPU backend (or when the GPU fails under `auto`, the
+    /// CPU then taking over for good) the image is rendered on the CPU and
+    /// returned instead, for the application to show as it shows any image.
+    pub fn render_into(&mut self, job: &Job<'_>, target: &wgpu::Texture) -> Result<Option<Rendered>, RenderError> {
+        let (w, h) = (target.width(), target.height());
+        let Engine::Gpu(g) = &mut self.engine else {
+            return self.render(job, w, h).map(Some);
+        };
+        let r = g.render_into(job, target);
+        for e in g.context().take_uncaptured() {
+            self.notice(format!("GPU error: {e}"));
+        }
+        match r {
+            Ok(()) => Ok(None),
+            Err(RenderError::Gpu(e)) if self.auto => {
+                self.notice(format!(
+                    "GPU backend failed ({}); continuing on the CPU backend",
+                    first_line(&e.to_string())
+                ));
+                let mut cpu = CpuRenderer::new();
+                let out = cpu.render(job, w, h);
+                self.engine = Engine::Cpu(cpu);
+                out.map(Some)
+            }
+            Err(e) => Err(e),
+        }
+    }
+
     /// Sends every notice, those already kept first, to `sink` from now on
     /// (e.g. a line on stderr) instead of keeping them.
     pub fn on_notice(&mut self, mut sink: impl FnMut(&str) + Send + 'static) {

@@ -161,3 +161,138 @@ fn one_loop_renders_every_pillar_on_both_backends() {
         assert_images(&format!("api_loop_{}", job.kind()), &frames[1], &frames[0], GPU_VS_CPU);
     }
 }
+
+/// A texture the application owns, as a viewer makes one to show.
+fn app_texture(device: &wgpu::Device, format: wgpu::TextureFormat, usage: wgpu::TextureUsages) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("the application's"),
+        size: wgpu::Extent3d { width: S, height: S, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}
+
+/// The texture's pixels, read back as the application would.
+fn read_texture(device: &wgpu::Device, queue: &wgpu::Queue, t: &wgpu::Texture) -> Vec<u8> {
+    let row = (4 * S).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let buf = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: (row * S) as u64,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut enc = device.create_command_encoder(&Default::default());
+    enc.copy_texture_to_buffer(
+        t.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buf,
+            layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row), rows_per_image: Some(S) },
+        },
+        t.size(),
+    );
+    queue.submit([enc.finish()]);
+    buf.slice(..).map_async(wgpu::MapMode::Read, |r| r.unwrap());
+    device.poll(wgpu::PollType::Wait { submission_index: None, timeout: None }).unwrap();
+    let data = buf.slice(..).get_mapped_range().unwrap();
+    data.chunks(row as usize).flat_map(|r| r[..4 * S as usize].to_vec()).collect()
+}
+
+#[test]
+fn rendering_into_the_callers_texture_draws_what_render_reads_back() {
+    if !have_gpu("rendering_into_the_callers_texture_draws_what_render_reads_back") {
+        return;
+    }
+    let (adapter, device, queue) = own_device(|_| wgpu::Limits::default());
+    let mut gpu = GpuRenderer::on_device(adapter, device.clone(), queue.clone()).unwrap();
+    let p = teapot();
+    let scene = hitex_render::PreparedScene::new(&hitex_core::scene::showcase_scene());
+    let jobs = [Job::Nurbs { model: &p, camera: p.camera }, Job::Scene { scene: &scene, camera: scene.camera }];
+    let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
+    let target = app_texture(&device, wgpu::TextureFormat::Rgba8Unorm, usage);
+    for job in &jobs {
+        gpu.render_into(job, &target).unwrap();
+        let drawn = read_texture(&device, &queue, &target);
+        // the read-back render after it still reads its own target back
+        let read = gpu.render(job, S, S).unwrap().frame;
+        assert_eq!((read.width, read.height), (S, S));
+        assert!(drawn == read.rgba, "{}: the texture differs from the frame read back", job.kind());
+        assert!(drawn.chunks(4).any(|p| p != &drawn[..4]), "{}: an empty image", job.kind());
+    }
+}
+
+#[test]
+fn targets_the_renderer_cannot_draw_into_are_refused_by_what_they_lack() {
+    if !have_gpu("targets_the_renderer_cannot_draw_into_are_refused_by_what_they_lack") {
+        return;
+    }
+    let (adapter, device, queue) = own_device(|_| wgpu::Limits::default());
+    let mut gpu = GpuRenderer::on_device(adapter, device.clone(), queue).unwrap();
+    let p = teapot();
+    let job = Job::Nurbs { model: &p, camera: p.camera };
+    let attach = wgpu::TextureUsages::RENDER_ATTACHMENT;
+    for (t, says) in [
+        (app_texture(&device, wgpu::TextureFormat::Rgba8UnormSrgb, attach), "must be Rgba8Unorm"),
+        (app_texture(&device, wgpu::TextureFormat::Bgra8Unorm, attach), "not Bgra8Unorm"),
+        (
+            app_texture(&device, wgpu::TextureFormat::Rgba8Unorm, wgpu::TextureUsages::TEXTURE_BINDING),
+            "RENDER_ATTACHMENT",
+        ),
+    ] {
+        match gpu.render_into(&job, &t) {
+            Err(RenderError::Invalid(m)) => assert!(m.contains(says), "{m}"),
+            other => panic!("expected a refusal naming {says}, got {:?}", other.err()),
+        }
+    }
+    // the renderer still draws after the refusals
+    let ok = app_texture(&device, wgpu::TextureFormat::Rgba8Unorm, attach);
+    gpu.render_into(&job, &ok).unwrap();
+}
+
+#[test]
+fn an_any_renderer_on_the_callers_device_draws_into_its_texture_or_hands_back_the_cpu_image() {
+    if !have_gpu("an_any_renderer_on_the_callers_device_draws_into_its_texture_or_hands_back_the_cpu_image") {
+        return;
+    }
+    let p = teapot();
+    let job = Job::Nurbs { model: &p, camera: p.camera };
+    let cpu = CpuRenderer::new().render(&job, S, S).unwrap().frame;
+    let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
+    let open = |choice, options| {
+        let (adapter, device, queue) = own_device(|_| wgpu::Limits::default());
+        let hardware = hitex_render::gpu::device::is_hardware(&adapter.get_info());
+        let target = app_texture(&device, wgpu::TextureFormat::Rgba8Unorm, usage);
+        let any = AnyRenderer::on_device(choice, options, adapter, device.clone(), queue.clone()).unwrap();
+        (any, target, device, queue, hardware)
+    };
+    // gpu: drawn into the texture, nothing handed back
+    let (mut any, target, device, queue, hardware) = open(BackendChoice::Gpu, OpenOptions::default());
+    assert!(any.is_gpu());
+    assert!(any.render_into(&job, &target).unwrap().is_none());
+    let drawn = read_texture(&device, &queue, &target);
+    let read = any.render(&job, S, S).unwrap().frame;
+    assert!(drawn == read.rgba, "the texture differs from the frame read back");
+    assert_images("api_any_into_nurbs", &read, &cpu, GPU_VS_CPU);
+    // cpu: the CPU image handed back
+    let (mut any, target, ..) = open(BackendChoice::Cpu, OpenOptions::default());
+    assert!(!any.is_gpu());
+    assert_eq!(any.render_into(&job, &target).unwrap().map(|r| r.frame), Some(cpu.clone()));
+    // auto: a software device is passed over for the CPU, and the name says why
+    let (any, ..) = open(BackendChoice::Auto, OpenOptions::default());
+    assert_eq!(any.is_gpu(), hardware, "{}", any.name());
+    if !hardware {
+        assert!(any.name().contains("no hardware GPU"), "{}", any.name());
+    }
+    // auto on a device that is lost: the CPU takes over, says so once, and hands its image back
+    let (mut any, target, ..) = open(BackendChoice::Auto, OpenOptions { software_for_auto: true, lose_device: true });
+    assert!(any.is_gpu());
+    assert_eq!(any.render_into(&job, &target).unwrap().map(|r| r.frame), Some(cpu.clone()));
+    assert!(matches!(any.engine(), Engine::Cpu(_)));
+    assert_eq!(any.render_into(&job, &target).unwrap().map(|r| r.frame), Some(cpu));
+    let notices = any.take_notices();
+    assert_eq!(notices.len(), 1, "{notices:?}");
+    assert!(notices[0].contains("CPU"), "{notices:?}");
+}

@@ -26,6 +26,23 @@ pub fn is_hardware(info: &wgpu::AdapterInfo) -> bool {
     info.device_type != wgpu::DeviceType::Cpu
 }
 
+/// The device hitex asks of `adapter`: the adapter's own limits and the
+/// features hitex can use that it has (BC texture compression, filterable
+/// float textures). An application that opens the device itself and hands
+/// it to [`GpuContext::on_device`] (e.g. as eframe's
+/// `WgpuSetupCreateNew::device_descriptor`) gets every layout hitex draws.
+pub fn device_descriptor(adapter: &wgpu::Adapter) -> wgpu::DeviceDescriptor<'static> {
+    let wanted = wgpu::Features::TEXTURE_COMPRESSION_BC
+        | wgpu::Features::TEXTURE_COMPRESSION_BC_SLICED_3D
+        | wgpu::Features::FLOAT32_FILTERABLE;
+    wgpu::DeviceDescriptor {
+        label: Some("hitex"),
+        required_features: adapter.features() & wanted,
+        required_limits: adapter.limits(),
+        ..Default::default()
+    }
+}
+
 /// Ranks adapters: real GPUs first, then software Vulkan (lavapipe), then GL.
 fn rank(info: &wgpu::AdapterInfo) -> u32 {
     let kind = match info.device_type {
@@ -125,15 +142,7 @@ impl GpuContext {
     /// Opens a device on `adapter`.
     fn open(adapter: wgpu::Adapter) -> Result<Self, GpuError> {
         let info = adapter.get_info();
-        let wanted = wgpu::Features::TEXTURE_COMPRESSION_BC
-            | wgpu::Features::TEXTURE_COMPRESSION_BC_SLICED_3D
-            | wgpu::Features::FLOAT32_FILTERABLE;
-        let desc = wgpu::DeviceDescriptor {
-            label: Some("hitex"),
-            required_features: adapter.features() & wanted,
-            required_limits: adapter.limits(),
-            ..Default::default()
-        };
+        let desc = device_descriptor(&adapter);
         let (device, queue) = pollster::block_on(adapter.request_device(&desc))
             .map_err(|e| GpuError::Device(format!("{} ({:?}): {e}", info.name, info.backend)))?;
         // errors outside an error scope are reported, never a panic

@@ -166,6 +166,9 @@ pub struct GpuRenderer {
     nurbs: Option<nurbs::NurbsGpu>,
     btf: Option<btf::BtfGpu>,
     fly: Option<terrain::FlyGpu>,
+    /// The caller's colour target while [`GpuRenderer::render_into`] renders
+    /// (no read-back then); `None`: the renderer's own target, read back.
+    into: Option<wgpu::TextureView>,
 }
 
 impl GpuRenderer {
@@ -237,7 +240,35 @@ impl GpuRenderer {
             nurbs: None,
             btf: None,
             fly: None,
+            into: None,
         })
+    }
+
+    /// Renders `job` into `target`, a texture of the application's on this
+    /// renderer's device (see [`GpuRenderer::on_device`]), with no read-back:
+    /// the image stays on the GPU for the application to show or use, the
+    /// same pixels [`Renderer::render`](crate::Renderer::render) would read
+    /// back at the texture's size. The texture must be 2-D, one layer, one
+    /// sample, [`wgpu::TextureFormat::Rgba8Unorm`] (the renderer's output:
+    /// sRGB-encoded bytes, as egui's native textures take them) and usable
+    /// as a render attachment; level 0 is drawn. Textures that are not are
+    /// refused by what they lack; a texture of another device is a
+    /// programming error that wgpu itself stops on (wgpu textures do not say
+    /// which device made them).
+    pub fn render_into(&mut self, job: &crate::Job<'_>, target: &wgpu::Texture) -> Result<(), RenderError> {
+        check_target(target)?;
+        let (w, h) = (target.width(), target.height());
+        self.into = Some(target.create_view(&wgpu::TextureViewDescriptor {
+            label: Some("caller's target"),
+            format: Some(wgpu::TextureFormat::Rgba8Unorm),
+            dimension: Some(wgpu::TextureViewDimension::D2),
+            base_mip_level: 0,
+            mip_level_count: Some(1),
+            ..Default::default()
+        }));
+        let r = crate::Renderer::render(self, job, w, h);
+        self.into = None;
+        r.map(|_| ())
     }
 
     /// Description of the adapter in use.
@@ -421,14 +452,21 @@ impl GpuRenderer {
         };
         let device = &self.ctx.device;
         let scope = UploadScope::open(device);
-        let color_view = tg.color.create_view(&Default::default());
+        let own_view;
+        let color_view = match &self.into {
+            Some(v) => v,
+            None => {
+                own_view = tg.color.create_view(&Default::default());
+                &own_view
+            }
+        };
         let depth_view = tg.depth.create_view(&Default::default());
         let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
         {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("frame"),
                 color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &color_view,
+                    view: color_view,
                     depth_slice: None,
                     resolve_target: None,
                     ops: wgpu::Operations {
@@ -451,6 +489,13 @@ impl GpuRenderer {
                 multiview_mask: None,
             });
             draw(&mut pass);
+        }
+        if self.into.is_some() {
+            // drawn into the caller's texture: nothing to read back
+            self.ctx.queue.submit([enc.finish()]);
+            self.ctx.alive()?;
+            scope.close("")?;
+            return Ok(Frame { width, height, rgba: Vec::new() });
         }
         enc.copy_texture_to_buffer(
             wgpu::TexelCopyTextureInfo {
@@ -475,6 +520,28 @@ impl GpuRenderer {
         let rgba = read_back(&self.ctx, &tg.readback, width, height, tg.padded_row)?;
         Ok(Frame { width, height, rgba })
     }
+}
+
+/// Why `target` cannot take [`GpuRenderer::render_into`]'s image, if it cannot.
+fn check_target(target: &wgpu::Texture) -> Result<(), RenderError> {
+    let bad = |why: String| Err(RenderError::Invalid(format!("the target texture {why}")));
+    if target.dimension() != wgpu::TextureDimension::D2 || target.depth_or_array_layers() != 1 {
+        return bad(format!(
+            "must be 2-D with one layer, not {:?} with {}",
+            target.dimension(),
+            target.depth_or_array_layers()
+        ));
+    }
+    if target.format() != wgpu::TextureFormat::Rgba8Unorm {
+        return bad(format!("must be Rgba8Unorm (sRGB-encoded bytes), not {:?}", target.format()));
+    }
+    if target.sample_count() != 1 {
+        return bad(format!("must have one sample, not {}", target.sample_count()));
+    }
+    if !target.usage().contains(wgpu::TextureUsages::RENDER_ATTACHMENT) {
+        return bad("needs TextureUsages::RENDER_ATTACHMENT".into());
+    }
+    check_size(target.width(), target.height())
 }
 
 fn read_back(
