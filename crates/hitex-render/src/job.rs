@@ -12,7 +12,10 @@
 //!
 //! [`CpuRenderer`], [`GpuRenderer`] and [`AnyRenderer`] (the GPU with the
 //! CPU taking over when the GPU fails) all implement [`Renderer`], so one
-//! loop serves every content on every backend.
+//! loop serves every content on every backend. On an application's own
+//! wgpu device ([`AnyRenderer::on_device`]) a job can also be drawn into
+//! the application's texture with no read-back ([`AnyRenderer::render_into`],
+//! [`GpuRenderer::render_into`]), as `hitex view` shows its frames.
 
 use crate::btf::PreparedBtf;
 use crate::cpu::CpuRenderer;
