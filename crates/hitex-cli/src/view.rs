@@ -623,8 +623,13 @@ struct GpuView {
 
 impl GpuView {
     /// The texture for a `w`×`h` view (made, or remade at a new size, and
-    /// registered with egui).
-    fn texture_for(&mut self, w: u32, h: u32) -> &wgpu::Texture {
+    /// registered with egui); `None` beyond the device's texture limit (the
+    /// render then refuses the size by name, through the read-back path).
+    fn texture_for(&mut self, w: u32, h: u32) -> Option<&wgpu::Texture> {
+        let max = self.state.device.limits().max_texture_dimension_2d;
+        if w > max || h > max {
+            return None;
+        }
         let fits = self.texture.as_ref().is_some_and(|(t, _)| (t.width(), t.height()) == (w, h));
         if !fits {
             let device = &self.state.device;
@@ -649,10 +654,7 @@ impl GpuView {
             };
             self.texture = Some((t, id));
         }
-        match &self.texture {
-            Some((t, _)) => t,
-            None => unreachable!("made above"),
-        }
+        self.texture.as_ref().map(|(t, _)| t)
     }
 }
 
@@ -669,6 +671,8 @@ struct ViewApp {
     texture: Option<egui::TextureHandle>,
     /// The last image (none when the GPU drew into its texture).
     last: Option<Frame>,
+    /// Whether the view shown was drawn into the window's texture.
+    in_texture: bool,
     dirty: bool,
     frame_ms: f64,
     frames: u32,
@@ -725,7 +729,7 @@ impl eframe::App for ViewApp {
                 _ => self.renderer.name(),
             };
             ui.label(format!("backend: {backend}"));
-            if self.drawn.is_some() && self.last.is_none() {
+            if self.in_texture {
                 // render_into returns once the frame is submitted; the window shows it when drawn
                 ui.label(format!("frame: {:.1} ms to submit ({} rendered)", self.frame_ms, self.frames));
                 ui.label("drawn into the window's texture on the GPU, no read-back");
@@ -757,7 +761,7 @@ impl eframe::App for ViewApp {
             if self.dirty || stale || self.content.settling() || scripted {
                 let t = Instant::now();
                 let into = match (&mut self.gpu, self.renderer.is_gpu()) {
-                    (Some(g), true) => Some(g.texture_for(w, h)),
+                    (Some(g), true) => g.texture_for(w, h),
                     _ => None,
                 };
                 match self.content.render(&mut self.renderer, w, h, into) {
@@ -782,6 +786,7 @@ impl eframe::App for ViewApp {
                                 };
                                 self.shown = Some(tex.id());
                                 self.last = Some(f);
+                                self.in_texture = false;
                             }
                             Shown::InTexture => {
                                 if self.frames == 1 {
@@ -789,6 +794,7 @@ impl eframe::App for ViewApp {
                                 }
                                 self.shown = self.gpu.as_ref().and_then(|g| g.texture.as_ref().map(|(_, id)| *id));
                                 self.last = None;
+                                self.in_texture = true;
                             }
                         }
                     }
@@ -887,6 +893,7 @@ pub fn run(a: ViewArgs) -> Result<(), CliError> {
         gpu: None,
         shown: None,
         drawn: None,
+        in_texture: false,
         size: a.size,
         texture: None,
         last: None,
@@ -919,11 +926,13 @@ pub fn run(a: ViewArgs) -> Result<(), CliError> {
         Box::new(move |cc| {
             if backend != Backend::Cpu {
                 // the GPU renderer on the window's device, drawing into a texture egui shows;
-                // without the window's device, one of its own (read back)
-                let renderer = match cc.wgpu_render_state.as_ref() {
+                // without the window's device, one of its own (read back), as also under the
+                // fault switch, which must not destroy the device the window draws with
+                let options = crate::open_options();
+                let renderer = match cc.wgpu_render_state.as_ref().filter(|_| !options.lose_device) {
                     Some(rs) => {
                         let (ad, dev, q) = (rs.adapter.clone(), rs.device.clone(), rs.queue.clone());
-                        let r = AnyRenderer::on_device(backend, crate::open_options(), ad, dev, q)
+                        let r = AnyRenderer::on_device(backend, options, ad, dev, q)
                             .map_err(|e| CliError::Internal(e.to_string()));
                         app.gpu = Some(GpuView { state: rs.clone(), texture: None });
                         r.map(|mut r| {

@@ -84,6 +84,28 @@ fn mean_diff(a: &[u8], b: &[u8]) -> f64 {
     a.iter().zip(b).map(|(x, y)| (*x as f64 - *y as f64).abs()).sum::<f64>() / a.len().max(1) as f64
 }
 
+/// Where the window screenshot `win` shows the image `view` pixel for pixel:
+/// the least mean |Δ| of `view` against the window's pixels at an offset
+/// whose first row matches (within two steps a channel), if one does.
+fn shown_in(win: &(u32, u32, Vec<u8>), view: &(u32, u32, Vec<u8>)) -> Option<f64> {
+    let ((ww, wh, w), (vw, vh, v)) =
+        ((win.0 as usize, win.1 as usize, &win.2), (view.0 as usize, view.1 as usize, &view.2));
+    let row = |y: usize, x: usize, n: usize| &w[(y * ww + x) * 4..(y * ww + x + n) * 4];
+    let near = |a: &[u8], b: &[u8]| a.iter().zip(b).all(|(p, q)| p.abs_diff(*q) <= 2);
+    let mut best: Option<f64> = None;
+    for y in 0..=wh.saturating_sub(vh) {
+        for x in 0..=ww.saturating_sub(vw) {
+            if !near(row(y, x, vw), &v[..vw * 4]) {
+                continue;
+            }
+            let crop: Vec<u8> = (0..vh).flat_map(|r| row(y + r, x, vw).to_vec()).collect();
+            let d = mean_diff(&crop, v);
+            best = Some(best.map_or(d, |b: f64| b.min(d)));
+        }
+    }
+    best
+}
+
 #[test]
 fn screenshots_equal_the_headless_renders() {
     // a display number of this process's own, not locked by another server
@@ -144,6 +166,8 @@ fn screenshots_equal_the_headless_renders() {
         let png = shot(&format!("{name}-view.png"));
         let mut a: Vec<&str> = view_args.iter().map(String::as_str).collect();
         a.extend(["--size", "160x120", "--frames", "3", "--screenshot", &png]);
+        let window = shot(&format!("{name}-window.png"));
+        a.extend(["--window-screenshot", &window]);
         let o = view(&x.display, &a);
         assert!(
             o.status.success(),
@@ -170,6 +194,10 @@ fn screenshots_equal_the_headless_renders() {
         let tolerance = if name.ends_with("cpu") { 0.0 } else { 0.4 };
         assert!(m <= tolerance, "{name}: mean |Δ| {m} > {tolerance}");
         println!("{name}: view screenshot vs headless render, mean |Δ| = {m:.4}");
+        // what the window shows is that image (drawn in place on the GPU, uploaded otherwise)
+        let shown = shown_in(&pixels(Path::new(&window)), &va);
+        assert!(shown.is_some_and(|d| d <= 0.5), "{name}: the window does not show the view ({shown:?})");
+        println!("{name}: window's view area vs view screenshot, mean |Δ| = {:.4}", shown.unwrap_or(f64::NAN));
     }
     // a display but no adapter to draw the window with: one clear message, no panic
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_hitex"));

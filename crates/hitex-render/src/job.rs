@@ -271,8 +271,12 @@ impl AnyRenderer {
     /// [`GpuRenderer::on_device`]): `Cpu` the CPU backend; `Gpu` the device;
     /// `Auto` the device if it is a hardware GPU (or a software one with
     /// [`OpenOptions::software_for_auto`]), else the CPU backend, said in the
-    /// name, and under `auto` the CPU taking over when the GPU fails, as
-    /// [`AnyRenderer::open_with`] does.
+    /// name; under `auto`, as [`AnyRenderer::open_with`] does, a renderer that
+    /// cannot be built on the device leaves the CPU with a notice, and the CPU
+    /// takes over when a render fails. On a device hitex does not own, the
+    /// failures seen are those a render reports (validation, out of memory, a
+    /// lost device); [`OpenOptions::lose_device`] destroys the application's
+    /// device.
     pub fn on_device(
         choice: BackendChoice,
         options: OpenOptions,
@@ -291,11 +295,20 @@ impl AnyRenderer {
             }
             _ => {
                 r.auto = choice == BackendChoice::Auto;
-                let g = GpuRenderer::on_device(adapter, device, queue)?;
-                if options.lose_device {
-                    g.context().lose_device();
+                match GpuRenderer::on_device(adapter, device, queue) {
+                    Ok(g) => {
+                        if options.lose_device {
+                            g.context().lose_device();
+                        }
+                        r.engine = Engine::Gpu(Box::new(g));
+                    }
+                    // auto: the CPU, said once, as `open_with` does
+                    Err(e) if r.auto => r.notices.push(format!(
+                        "GPU backend unavailable ({}); falling back to the CPU backend",
+                        first_line(&e.to_string())
+                    )),
+                    Err(e) => return Err(e),
                 }
-                r.engine = Engine::Gpu(Box::new(g));
             }
         }
         Ok(r)
@@ -303,9 +316,11 @@ impl AnyRenderer {
 
     /// Renders `job` into `target`, a texture on the device of the GPU in use
     /// ([`GpuRenderer::render_into`]): `Ok(None)` when drawn there, with no
-    /// read-back. On the CPU backend (or when the GPU fails under `auto`, the
-    /// CPU then taking over for good) the image is rendered on the CPU and
-    /// returned instead, for the application to show as it shows any image.
+    /// read-back. On the CPU backend (or when the render reports a GPU
+    /// failure under `auto`, the CPU then taking over for good) the image is
+    /// rendered on the CPU and returned instead, for the application to show
+    /// as it shows any image. The call returns once the frame is submitted: a
+    /// GPU that hangs afterwards is not seen here.
     pub fn render_into(&mut self, job: &Job<'_>, target: &wgpu::Texture) -> Result<Option<Rendered>, RenderError> {
         let (w, h) = (target.width(), target.height());
         let Engine::Gpu(g) = &mut self.engine else {

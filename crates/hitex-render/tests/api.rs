@@ -296,3 +296,26 @@ fn an_any_renderer_on_the_callers_device_draws_into_its_texture_or_hands_back_th
     assert_eq!(notices.len(), 1, "{notices:?}");
     assert!(notices[0].contains("CPU"), "{notices:?}");
 }
+
+#[test]
+fn a_device_the_renderer_cannot_be_built_on_leaves_auto_on_the_cpu() {
+    if !have_gpu("a_device_the_renderer_cannot_be_built_on_leaves_auto_on_the_cpu") {
+        return;
+    }
+    // one bind group a pipeline: the renderer's pipelines (two and more) cannot be built
+    let one_group = |l: wgpu::Limits| wgpu::Limits { max_bind_groups: 1, ..l };
+    let options = OpenOptions { software_for_auto: true, lose_device: false };
+    let (adapter, device, queue) = own_device(one_group);
+    match AnyRenderer::on_device(BackendChoice::Gpu, options, adapter, device, queue) {
+        Err(_) => {}
+        Ok(r) => panic!("gpu on a device it cannot use: {}", r.name()),
+    }
+    let (adapter, device, queue) = own_device(one_group);
+    let mut any = AnyRenderer::on_device(BackendChoice::Auto, options, adapter, device, queue).unwrap();
+    assert!(!any.is_gpu());
+    let notices = any.take_notices();
+    assert!(notices.len() == 1 && notices[0].contains("falling back to the CPU"), "{notices:?}");
+    let p = teapot();
+    let job = Job::Nurbs { model: &p, camera: p.camera };
+    assert_eq!(any.render(&job, S, S).unwrap().frame, CpuRenderer::new().render(&job, S, S).unwrap().frame);
+}
